@@ -1,0 +1,250 @@
+"""The `Course`: a road centre line parametrised by arc length (model.md section 1).
+
+Holds, on a uniform grid in `s`, the ENU centre line anchored at the start, heading
+`theta(s)`, curvature `kappa(s)`, altitude `z(s)`, slope `beta(s)` and usable half-widths
+`w_L(s)`, `w_R(s)`; the geodetic origin for ENU <-> lat/lon; the detected corners; and
+the source file's hash. Saved as one `.npz` file (arrays + a JSON header).
+
+Building a course from a GPS track lives in `course_fit`, from segment descriptions in
+`course_builder`; `load_course` resolves any `--course` argument.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pymap3d
+
+from itt_planner.errors import CourseError
+
+COURSE_SUFFIX = ".course.npz"
+DEFAULT_HALF_WIDTH_M = 4.0
+#: A bend whose radius goes below this is a corner (m).
+CORNER_RADIUS_M = 100.0
+#: ... and it must turn at least this much in total (rad) to count.
+CORNER_MIN_ANGLE_RAD = math.radians(20.0)
+_FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class GeoOrigin:
+    """Geodetic anchor of the ENU frame (WGS84)."""
+
+    lat_deg: float
+    lon_deg: float
+    alt_m: float
+
+
+@dataclass(frozen=True)
+class Corner:
+    """One corner. Angles in rad; direction is 'left' (kappa > 0) or 'right'."""
+
+    apex_s_m: float
+    entry_s_m: float
+    exit_s_m: float
+    min_radius_m: float
+    angle_rad: float
+    direction: str
+
+
+_ARRAYS = ("s_m", "x_m", "y_m", "z_m", "theta_rad", "kappa_per_m", "beta_rad",
+           "width_left_m", "width_right_m")
+
+
+@dataclass(frozen=True, eq=False)
+class Course:
+    """A course on a uniform arc-length grid. All arrays have the same length."""
+
+    name: str
+    s_m: np.ndarray
+    x_m: np.ndarray
+    y_m: np.ndarray
+    z_m: np.ndarray
+    theta_rad: np.ndarray
+    kappa_per_m: np.ndarray
+    beta_rad: np.ndarray
+    width_left_m: np.ndarray
+    width_right_m: np.ndarray
+    origin: GeoOrigin
+    closed_loop: bool
+    corners: tuple[Corner, ...]
+    source: str = ""
+    source_sha256: str = ""
+    synthetic: bool = False
+
+    # ---- construction -------------------------------------------------------------
+    @classmethod
+    def from_centerline(
+        cls, name: str, x_m: np.ndarray, y_m: np.ndarray, z_m: np.ndarray, *,
+        origin: GeoOrigin, closed_loop: bool = False, ds_m: float = 1.0,
+        width_left_m: float | np.ndarray = DEFAULT_HALF_WIDTH_M,
+        width_right_m: float | np.ndarray = DEFAULT_HALF_WIDTH_M,
+        source: str = "", source_sha256: str = "", synthetic: bool = False,
+    ) -> Course:
+        """Resample an already smooth ENU centre line to a uniform `ds_m` grid.
+
+        Heading, curvature and slope are derived here (model.md section 1) so every
+        builder shares one definition. Width arrays, if given, are per input point.
+        """
+        x, y, z = (np.asarray(a, dtype=float) for a in (x_m, y_m, z_m))
+        seg = np.hypot(np.diff(x), np.diff(y))
+        keep = np.concatenate([[True], seg > 1e-6])
+        x, y, z = x[keep], y[keep], z[keep]
+        s_in = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
+        if len(x) < 3 or s_in[-1] <= 3 * ds_m:
+            msg = f"course {name!r}: centre line too short ({s_in[-1]:.1f} m, {len(x)} points)"
+            raise CourseError(msg)
+        n = int(math.floor(s_in[-1] / ds_m)) + 1
+        s = np.linspace(0.0, (n - 1) * ds_m, n)
+        xs, ys, zs = (np.interp(s, s_in, a) for a in (x, y, z))
+        wl = np.interp(s, s_in, np.broadcast_to(width_left_m, x.shape)[keep[: len(x)]]
+                       if np.ndim(width_left_m) else np.full(len(x), width_left_m))
+        wr = np.interp(s, s_in, np.broadcast_to(width_right_m, x.shape)[keep[: len(x)]]
+                       if np.ndim(width_right_m) else np.full(len(x), width_right_m))
+        theta = np.unwrap(np.arctan2(np.gradient(ys, s), np.gradient(xs, s)))
+        kappa = np.gradient(theta, s)
+        beta = np.arctan(np.gradient(zs, s))
+        return cls(
+            name=name, s_m=s, x_m=xs, y_m=ys, z_m=zs, theta_rad=theta, kappa_per_m=kappa,
+            beta_rad=beta, width_left_m=wl, width_right_m=wr, origin=origin,
+            closed_loop=closed_loop, corners=detect_corners(s, kappa), source=source,
+            source_sha256=source_sha256, synthetic=synthetic,
+        )
+
+    # ---- queries --------------------------------------------------------------------
+    @property
+    def length_m(self) -> float:
+        return float(self.s_m[-1])
+
+    @property
+    def ds_m(self) -> float:
+        return float(self.s_m[1] - self.s_m[0])
+
+    def at(self, field: str, s_m: float | np.ndarray) -> np.ndarray:
+        """Linear interpolation of one of the arrays (by attribute name) at `s_m`."""
+        return np.interp(s_m, self.s_m, getattr(self, field))
+
+    def enu_at(self, s_m: float | np.ndarray, n_m: float | np.ndarray = 0.0
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """ENU point at arc length `s_m` and lateral offset `n_m` (positive left)."""
+        theta = self.at("theta_rad", s_m)
+        x = self.at("x_m", s_m) - np.asarray(n_m) * np.sin(theta)
+        y = self.at("y_m", s_m) + np.asarray(n_m) * np.cos(theta)
+        return x, y, self.at("z_m", s_m)
+
+    def to_geodetic(self, x_m: np.ndarray, y_m: np.ndarray, z_m: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """ENU (m) -> WGS84 latitude, longitude (deg) and altitude (m)."""
+        o = self.origin
+        return pymap3d.enu2geodetic(x_m, y_m, z_m, o.lat_deg, o.lon_deg, o.alt_m)
+
+    def from_geodetic(self, lat_deg: np.ndarray, lon_deg: np.ndarray, alt_m: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """WGS84 latitude, longitude (deg), altitude (m) -> ENU (m)."""
+        o = self.origin
+        return pymap3d.geodetic2enu(lat_deg, lon_deg, alt_m, o.lat_deg, o.lon_deg, o.alt_m)
+
+    def summary(self) -> dict[str, Any]:
+        """The figures `itt-planner course info` prints (edge units: %, deg)."""
+        dz = np.diff(self.z_m)
+        grade = np.tan(self.beta_rad)
+        radii = [c.min_radius_m for c in self.corners]
+        return {
+            "name": self.name,
+            "length_m": round(self.length_m, 1),
+            "gain_m": round(float(dz[dz > 0].sum()), 1),
+            "loss_m": round(float(-dz[dz < 0].sum()), 1),
+            "max_grade": round(float(grade.max()), 4),
+            "min_grade": round(float(grade.min()), 4),
+            "n_corners": len(self.corners),
+            "min_radius_m": round(min(radii), 1) if radii else None,
+            "closed_loop": self.closed_loop,
+            "synthetic": self.synthetic,
+            "source": self.source,
+            "source_sha256": self.source_sha256,
+            "corners": [
+                {"apex_s_m": round(c.apex_s_m, 1), "entry_s_m": round(c.entry_s_m, 1),
+                 "exit_s_m": round(c.exit_s_m, 1), "min_radius_m": round(c.min_radius_m, 1),
+                 "angle_deg": round(math.degrees(c.angle_rad), 1), "direction": c.direction}
+                for c in self.corners
+            ],
+        }
+
+    # ---- persistence ------------------------------------------------------------------
+    def save(self, path: str | Path) -> Path:
+        """Write the course as `.course.npz` (arrays + JSON header)."""
+        path = Path(path)
+        header = {
+            "format": "itt-planner-course", "version": _FORMAT_VERSION, "name": self.name,
+            "origin": asdict(self.origin), "closed_loop": self.closed_loop,
+            "corners": [asdict(c) for c in self.corners], "source": self.source,
+            "source_sha256": self.source_sha256, "synthetic": self.synthetic,
+        }
+        with path.open("wb") as fh:
+            np.savez_compressed(fh, header=np.array(json.dumps(header)),
+                                **{k: getattr(self, k) for k in _ARRAYS})
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> Course:
+        """Read a course written by `save`.
+
+        Raises:
+            CourseError: not a course file, or a missing array.
+        """
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                header = json.loads(str(data["header"]))
+                arrays = {k: np.array(data[k]) for k in _ARRAYS}
+        except (OSError, ValueError, KeyError) as err:
+            raise CourseError(f"{path}: not an itt-planner course file ({err})") from None
+        if header.get("format") != "itt-planner-course":
+            raise CourseError(f"{path}: not an itt-planner course file")
+        return cls(
+            name=header["name"], origin=GeoOrigin(**header["origin"]),
+            closed_loop=header["closed_loop"],
+            corners=tuple(Corner(**c) for c in header["corners"]), source=header["source"],
+            source_sha256=header["source_sha256"], synthetic=header["synthetic"], **arrays,
+        )
+
+
+def detect_corners(s_m: np.ndarray, kappa_per_m: np.ndarray) -> tuple[Corner, ...]:
+    """Corners are runs where the radius drops below `CORNER_RADIUS_M`.
+
+    A run that turns less than `CORNER_MIN_ANGLE_RAD` (a kink of the road, not a corner)
+    is dropped. Consecutive runs of opposite sign (an S-bend) are separate corners. Entry
+    and exit are where |kappa| falls to half of the threshold, so the whole bend is timed.
+    """
+    kappa = np.asarray(kappa_per_m)
+    sign = np.sign(kappa)
+    tight = np.abs(kappa) > 1.0 / CORNER_RADIUS_M
+    corners: list[Corner] = []
+    i, n = 0, len(kappa)
+    while i < n:
+        if not tight[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < n and tight[j + 1] and sign[j + 1] == sign[i]:
+            j += 1
+        a, b = i, j
+        while a > 0 and abs(kappa[a - 1]) > 0.5 / CORNER_RADIUS_M and sign[a - 1] == sign[i]:
+            a -= 1
+        while b + 1 < n and abs(kappa[b + 1]) > 0.5 / CORNER_RADIUS_M and sign[b + 1] == sign[i]:
+            b += 1
+        angle = float(np.trapezoid(kappa[a:b + 1], s_m[a:b + 1])) if b > a else 0.0
+        if abs(angle) >= CORNER_MIN_ANGLE_RAD:
+            apex = i + int(np.argmax(np.abs(kappa[i:j + 1])))
+            corners.append(Corner(
+                apex_s_m=float(s_m[apex]), entry_s_m=float(s_m[a]), exit_s_m=float(s_m[b]),
+                min_radius_m=float(1.0 / abs(kappa[apex])), angle_rad=abs(angle),
+                direction="left" if kappa[apex] > 0 else "right",
+            ))
+        i = j + 1
+    return tuple(corners)

@@ -1,0 +1,102 @@
+"""The `Plan`: the solved optimal trajectory over a course, and its file format.
+
+Arrays are over the arc-length grid `s_m` of the OCP nodes, in SI units. The 1D model
+(model.md section 6) fills the lateral arrays with zeros. Saved as one `.plan.npz` file
+(arrays + a JSON header with the solver figures and what the plan was computed for).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from itt_planner.errors import IttError
+
+PLAN_SUFFIX = ".plan.npz"
+_FORMAT = "itt-planner-plan"
+
+#: Arrays of a plan, all of the length of `s_m`.
+PLAN_ARRAYS = (
+    "s_m", "t_s", "n_m", "alpha_rad", "phi_rad", "phi_dot_radps", "v_mps", "w_n", "delta_n",
+    "e_n", "u_delta", "u_w", "power_w", "w_prime_j", "ax_mps2", "ay_mps2", "friction_use",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """A solved plan. `meta` holds what it was computed for (course hash, rider, settings).
+
+    Attributes:
+        power_w: power at the contact point, negative when braking (model.md section 2).
+        ax_mps2: tyre longitudinal force per unit mass (model.md C16).
+        ay_mps2: lateral (centripetal) acceleration `v^2 tan(delta) / L`.
+        friction_use: the friction-ellipse left-hand side of C16 (<= 1 when feasible).
+    """
+
+    model: str
+    s_m: np.ndarray
+    t_s: np.ndarray
+    n_m: np.ndarray
+    alpha_rad: np.ndarray
+    phi_rad: np.ndarray
+    phi_dot_radps: np.ndarray
+    v_mps: np.ndarray
+    w_n: np.ndarray
+    delta_n: np.ndarray
+    e_n: np.ndarray
+    u_delta: np.ndarray
+    u_w: np.ndarray
+    power_w: np.ndarray
+    w_prime_j: np.ndarray
+    ax_mps2: np.ndarray
+    ay_mps2: np.ndarray
+    friction_use: np.ndarray
+    solver_status: str
+    iterations: int
+    solve_time_s: float
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def finish_time_s(self) -> float:
+        return float(self.t_s[-1])
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.s_m)
+
+    def at(self, name: str, s_m: float | np.ndarray) -> np.ndarray:
+        """Linear interpolation of one plan array (by attribute name) at `s_m`."""
+        return np.interp(s_m, self.s_m, getattr(self, name))
+
+    def save(self, path: str | Path) -> Path:
+        path = Path(path)
+        header = {"format": _FORMAT, "model": self.model, "solver_status": self.solver_status,
+                  "iterations": self.iterations, "solve_time_s": self.solve_time_s,
+                  "meta": self.meta}
+        with path.open("wb") as fh:
+            np.savez_compressed(fh, header=np.array(json.dumps(header)),
+                                **{k: getattr(self, k) for k in PLAN_ARRAYS})
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> Plan:
+        """Read a plan written by `save`.
+
+        Raises:
+            IttError: not a plan file.
+        """
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                header = json.loads(str(data["header"]))
+                arrays = {k: np.array(data[k]) for k in PLAN_ARRAYS}
+        except (OSError, ValueError, KeyError) as err:
+            raise IttError(f"{path}: not an itt-planner plan file ({err})") from None
+        if header.get("format") != _FORMAT:
+            raise IttError(f"{path}: not an itt-planner plan file")
+        names = {f.name for f in fields(cls)}
+        return cls(**arrays, **{k: v for k, v in header.items() if k in names})

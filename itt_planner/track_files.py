@@ -1,0 +1,210 @@
+"""Read GPS track and ride files (GPX, TCX, FIT, CSV) into one record type.
+
+Courses use only the positions; ride import also uses the stamps, speed and power.
+Parsing is left to well-kept libraries (gpxpy, tcxreader, fitdecode); this module only
+maps their records onto `Recording` arrays and turns their failures into `CourseError`
+naming the file.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from itt_planner.errors import CourseError
+
+#: FIT stores positions in semicircles: 2^31 semicircles = 180 degrees.
+_SEMICIRCLE_DEG = 180.0 / 2**31
+SUFFIXES = (".gpx", ".tcx", ".fit", ".csv")
+
+
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """Samples of a GPS track or ride. Missing values are NaN; times may be absent.
+
+    Attributes:
+        time_s: POSIX seconds of each sample, or None for tracks without stamps.
+    """
+
+    path: Path
+    sha256: str
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    ele_m: np.ndarray
+    time_s: np.ndarray | None = None
+    speed_mps: np.ndarray | None = None
+    power_w: np.ndarray | None = None
+    cadence_rpm: np.ndarray | None = None
+    device: str = ""
+    meta: dict[str, str] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.lat_deg)
+
+
+def file_sha256(path: Path) -> str:
+    """SHA-256 of a file's bytes, used to key courses and plans to their source."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def read_recording(path: str | Path) -> Recording:
+    """Read a GPX, TCX, FIT or CSV file.
+
+    Raises:
+        CourseError: missing or empty file, unknown suffix, or a parser failure, with the
+            file name in the message.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise CourseError(f"{path}: no such file")
+    if path.stat().st_size == 0:
+        raise CourseError(f"{path}: the file is empty")
+    suffix = path.suffix.lower()
+    readers = {".gpx": _read_gpx, ".tcx": _read_tcx, ".fit": _read_fit, ".csv": _read_csv}
+    if suffix not in readers:
+        msg = f"{path}: unknown track format {suffix!r}; expected one of {', '.join(SUFFIXES)}"
+        raise CourseError(msg)
+    try:
+        rec = readers[suffix](path)
+    except CourseError:
+        raise
+    except Exception as err:  # the parsers raise many unrelated types on bad input
+        msg = f"{path}: not a valid {suffix[1:].upper()} file ({type(err).__name__}: {err})"
+        raise CourseError(msg) from None
+    if len(rec) == 0:
+        raise CourseError(f"{path}: no track points found")
+    return rec
+
+
+def _arr(values: list[float | None]) -> np.ndarray:
+    return np.array([np.nan if v is None else float(v) for v in values], dtype=float)
+
+
+def _opt(values: list[float | None]) -> np.ndarray | None:
+    arr = _arr(values)
+    return None if np.all(np.isnan(arr)) else arr
+
+
+def _read_gpx(path: Path) -> Recording:
+    import gpxpy  # noqa: PLC0415  (lazy: only GPX needs it)
+
+    gpx = gpxpy.parse(path.read_text(encoding="utf-8", errors="replace"))
+    points = [p for trk in gpx.tracks for seg in trk.segments for p in seg.points]
+    if not points:
+        points = [p for rte in gpx.routes for p in rte.points]
+    times = [p.time.timestamp() if p.time else None for p in points]
+    power: list[float | None] = []
+    for p in points:
+        watts = None
+        for ext in p.extensions:
+            for el in ext.iter():
+                if el.tag.lower().endswith("power") and el.text:
+                    watts = float(el.text)
+        power.append(watts)
+    return Recording(
+        path=path, sha256=file_sha256(path),
+        lat_deg=_arr([p.latitude for p in points]), lon_deg=_arr([p.longitude for p in points]),
+        ele_m=_arr([p.elevation for p in points]), time_s=_opt(times), power_w=_opt(power),
+        device=gpx.creator or "",
+    )
+
+
+def _read_tcx(path: Path) -> Recording:
+    from tcxreader.tcxreader import TCXReader  # noqa: PLC0415
+
+    ex = TCXReader().read(str(path))
+    tps = ex.trackpoints or []
+    return Recording(
+        path=path, sha256=file_sha256(path),
+        lat_deg=_arr([tp.latitude for tp in tps]), lon_deg=_arr([tp.longitude for tp in tps]),
+        ele_m=_arr([tp.elevation for tp in tps]),
+        time_s=_opt([tp.time.timestamp() if tp.time else None for tp in tps]),
+        speed_mps=_opt([tp.tpx_ext.get("Speed") if tp.tpx_ext else None for tp in tps]),
+        power_w=_opt([tp.tpx_ext.get("Watts") if tp.tpx_ext else None for tp in tps]),
+        cadence_rpm=_opt([tp.cadence for tp in tps]),
+        device=str(getattr(ex, "device", "") or ""),
+    )
+
+
+def _read_fit(path: Path) -> Recording:
+    import fitdecode  # noqa: PLC0415
+
+    rows: list[dict[str, object]] = []
+    device = ""
+    with fitdecode.FitReader(str(path), check_crc=fitdecode.CrcCheck.WARN) as reader:
+        for frame in reader:
+            if frame.frame_type != fitdecode.FIT_FRAME_DATA:
+                continue
+            if frame.name == "file_id" and not device:
+                values = {f.name: f.value for f in frame.fields}
+                device = " ".join(str(values[k]) for k in ("manufacturer", "garmin_product",
+                                                           "product") if values.get(k))
+            elif frame.name == "record":
+                rows.append({f.name: f.value for f in frame.fields})
+
+    def col(*names: str, scale: float = 1.0) -> list[float | None]:
+        out: list[float | None] = []
+        for row in rows:
+            value = next((row[n] for n in names if row.get(n) is not None), None)
+            out.append(None if value is None else float(value) * scale)  # type: ignore[arg-type]
+        return out
+
+    times = [r["timestamp"].timestamp() if r.get("timestamp") else None for r in rows]  # type: ignore[union-attr]
+    return Recording(
+        path=path, sha256=file_sha256(path),
+        lat_deg=_arr(col("position_lat", scale=_SEMICIRCLE_DEG)),
+        lon_deg=_arr(col("position_long", scale=_SEMICIRCLE_DEG)),
+        ele_m=_arr(col("enhanced_altitude", "altitude")), time_s=_opt(times),
+        speed_mps=_opt(col("enhanced_speed", "speed")), power_w=_opt(col("power")),
+        cadence_rpm=_opt(col("cadence")), device=device,
+    )
+
+
+def _read_csv(path: Path) -> Recording:
+    """CSV either `lon,lat,ele` without header, or with a header naming lat/lon/ele columns."""
+    text = path.read_text(encoding="utf-8", errors="replace")
+    rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
+    if not rows:
+        raise CourseError(f"{path}: no rows")
+    header = [c.strip().lower() for c in rows[0]]
+    aliases = {"lat": ("lat", "latitude"), "lon": ("lon", "lng", "long", "longitude"),
+               "ele": ("ele", "elevation", "alt", "altitude"), "time": ("time", "timestamp"),
+               "power": ("power", "watts"), "speed": ("speed",)}
+    if any(h in aliases["lat"] for h in header):
+        def index(key: str) -> int | None:
+            return next((header.index(a) for a in aliases[key] if a in header), None)
+        cols = {k: index(k) for k in aliases}
+        if cols["lon"] is None:
+            raise CourseError(f"{path}: header has a latitude but no longitude column")
+        body = rows[1:]
+    else:
+        if len(rows[0]) < 2:
+            raise CourseError(f"{path}: expected 'lon,lat[,ele]' rows, got {rows[0]!r}")
+        cols = {"lon": 0, "lat": 1, "ele": 2 if len(rows[0]) > 2 else None,
+                "time": None, "power": None, "speed": None}
+        body = rows
+
+    def column(key: str) -> list[float | None]:
+        i = cols[key]
+        out: list[float | None] = []
+        for line_no, row in enumerate(body, start=2 if body is not rows else 1):
+            if i is None or i >= len(row) or not row[i].strip():
+                out.append(None)
+                continue
+            try:
+                out.append(float(row[i]))
+            except ValueError:
+                msg = f"{path}: line {line_no}: {key} {row[i]!r} is not a number"
+                raise CourseError(msg) from None
+        return out
+
+    return Recording(
+        path=path, sha256=file_sha256(path), lat_deg=_arr(column("lat")),
+        lon_deg=_arr(column("lon")), ele_m=_arr(column("ele")), time_s=_opt(column("time")),
+        speed_mps=_opt(column("speed")), power_w=_opt(column("power")),
+    )
