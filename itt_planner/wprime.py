@@ -1,0 +1,47 @@
+"""W' balance (model.md E9): the rate of change of normalised anaerobic capacity.
+
+Written with operations NumPy floats and CasADi symbols share, so the OCP (symbolic) and
+the estimator (numeric) use one definition. Rates are per second; the spatial form of
+E9 divides by `s_dot`.
+"""
+
+from __future__ import annotations
+
+from enum import Enum
+from typing import Any
+
+import casadi as ca
+
+
+#: Width of the band below full W' over which the paper variant's recovery fades out.
+_PAPER_CAP_BAND = 0.02
+
+
+class WPrimeModel(str, Enum):
+    """Which E9 variant: the Skiba differential model (default) or the paper's."""
+
+    SKIBA = "skiba"
+    PAPER = "paper"
+
+
+def e_n_rate(e_n: Any, p_plus_w: Any, critical_power_w: float, w_prime_j: float,
+             model: WPrimeModel = WPrimeModel.SKIBA, *, sharpness_w: float = 0.0) -> Any:
+    """d E_n / dt for normalised W' `e_n` and pedalling power `p_plus_w` >= 0 (E9).
+
+    Skiba: depletion `-(P+ - W_C)/E_0` above `W_C`, recovery `(W_C - P+)(1 - E_n)/E_0`
+    below. Paper [fix]: the symmetric model, whose recovery fades out over the last
+    `_PAPER_CAP_BAND` below full, so W' never grows above 1 yet riding below CP stays
+    allowed (a hard cap would be a non-smooth constraint the NLP cannot handle). `sharpness_w` > 0 smooths the switch at `W_C` (a softplus of
+    that width in watts) for a gradient-based solver; 0 gives the exact kink.
+    """
+    excess = p_plus_w - critical_power_w
+    if sharpness_w > 0:
+        above = sharpness_w * ca.log1p(ca.exp(excess / sharpness_w))
+    else:
+        above = ca.fmax(excess, 0)
+    below = above - excess  # = max(W_C - P+, 0), smoothed alike
+    if model is WPrimeModel.SKIBA:
+        recovery = below * (1 - e_n)
+    else:
+        recovery = below * ca.fmin(1, (1 - e_n) / _PAPER_CAP_BAND)
+    return (recovery - above) / w_prime_j
