@@ -84,30 +84,47 @@ class Course:
         origin: GeoOrigin, closed_loop: bool = False, ds_m: float = 1.0,
         width_left_m: float | np.ndarray = DEFAULT_HALF_WIDTH_M,
         width_right_m: float | np.ndarray = DEFAULT_HALF_WIDTH_M,
+        theta_rad: np.ndarray | None = None, kappa_per_m: np.ndarray | None = None,
         source: str = "", source_sha256: str = "", synthetic: bool = False,
     ) -> Course:
         """Resample an already smooth ENU centre line to a uniform `ds_m` grid.
 
         Heading, curvature and slope are derived here (model.md section 1) so every
-        builder shares one definition. Width arrays, if given, are per input point.
+        builder shares one definition, unless the builder knows heading and curvature
+        analytically (spline fit, clothoids) and passes them. Width, heading and curvature
+        arrays, if given, are per input point.
+
+        Raises:
+            CourseError: fewer than 3 distinct points or shorter than 3 grid steps.
         """
         x, y, z = (np.asarray(a, dtype=float) for a in (x_m, y_m, z_m))
-        seg = np.hypot(np.diff(x), np.diff(y))
-        keep = np.concatenate([[True], seg > 1e-6])
+        per_point = {
+            "wl": np.broadcast_to(np.asarray(width_left_m, dtype=float), x.shape),
+            "wr": np.broadcast_to(np.asarray(width_right_m, dtype=float), x.shape),
+        }
+        if theta_rad is not None:
+            per_point["theta"] = np.unwrap(np.asarray(theta_rad, dtype=float))
+        if kappa_per_m is not None:
+            per_point["kappa"] = np.asarray(kappa_per_m, dtype=float)
+        keep = np.concatenate([[True], np.hypot(np.diff(x), np.diff(y)) > 1e-6])
         x, y, z = x[keep], y[keep], z[keep]
+        per_point = {k: v[keep] for k, v in per_point.items()}
         s_in = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
         if len(x) < 3 or s_in[-1] <= 3 * ds_m:
             msg = f"course {name!r}: centre line too short ({s_in[-1]:.1f} m, {len(x)} points)"
             raise CourseError(msg)
-        n = int(math.floor(s_in[-1] / ds_m)) + 1
+        n = int(math.floor(s_in[-1] / ds_m + 1e-9)) + 1
         s = np.linspace(0.0, (n - 1) * ds_m, n)
         xs, ys, zs = (np.interp(s, s_in, a) for a in (x, y, z))
-        wl = np.interp(s, s_in, np.broadcast_to(width_left_m, x.shape)[keep[: len(x)]]
-                       if np.ndim(width_left_m) else np.full(len(x), width_left_m))
-        wr = np.interp(s, s_in, np.broadcast_to(width_right_m, x.shape)[keep[: len(x)]]
-                       if np.ndim(width_right_m) else np.full(len(x), width_right_m))
-        theta = np.unwrap(np.arctan2(np.gradient(ys, s), np.gradient(xs, s)))
-        kappa = np.gradient(theta, s)
+        wl, wr = (np.interp(s, s_in, per_point[k]) for k in ("wl", "wr"))
+        if "theta" in per_point:
+            theta = np.interp(s, s_in, per_point["theta"])
+        else:
+            theta = np.unwrap(np.arctan2(np.gradient(ys, s), np.gradient(xs, s)))
+        if "kappa" in per_point:
+            kappa = np.interp(s, s_in, per_point["kappa"])
+        else:
+            kappa = np.gradient(theta, s)
         beta = np.arctan(np.gradient(zs, s))
         return cls(
             name=name, s_m=s, x_m=xs, y_m=ys, z_m=zs, theta_rad=theta, kappa_per_m=kappa,
