@@ -167,17 +167,23 @@ def clean_track(rec: Recording, settings: FitSettings = FitSettings()) -> Track:
     length = float(step.sum())
     gap = float(np.hypot(x[-1] - x[0], y[-1] - y[0]))
     closed = gap <= settings.closed_loop_gap_m and length >= settings.closed_loop_min_length_m
-    if not closed and length >= settings.closed_loop_min_length_m:
-        # A lap file often runs a few points past the line: cut at the fix nearest the start
-        # among the last ones.
-        tail = np.flatnonzero(np.cumsum(step[::-1]) < 3 * settings.closed_loop_gap_m)
-        if len(tail):
-            cand = len(x) - 1 - np.arange(0, len(tail) + 1)
-            d0 = np.hypot(x[cand] - x[0], y[cand] - y[0])
-            best = int(cand[np.argmin(d0)])
-            if d0.min() <= settings.closed_loop_gap_m:
-                closed = True
-                x, y, ele = x[: best + 1], y[: best + 1], ele[: best + 1]
+    if length >= settings.closed_loop_min_length_m:
+        # A lap file often runs a few fixes past the line. Cut at the last fix near the start
+        # that is still before it (along the start direction), or the closing chord would
+        # run backwards and make a U-turn at the seam.
+        far = np.flatnonzero(np.hypot(x - x[0], y - y[0]) > settings.closed_loop_gap_m)
+        ahead = (np.array([x[far[0]] - x[0], y[far[0]] - y[0]]) if len(far)
+                 else np.array([1.0, 0.0]))
+        ahead /= np.linalg.norm(ahead)
+        tail = len(x) - 1 - np.flatnonzero(np.cumsum(step[::-1]) < 3 * settings.closed_loop_gap_m)
+        tail = np.concatenate([[len(x) - 1], tail])
+        near = np.hypot(x[tail] - x[0], y[tail] - y[0]) <= settings.closed_loop_gap_m
+        before = (x[tail] - x[0]) * ahead[0] + (y[tail] - y[0]) * ahead[1] < 0
+        ok = tail[near & before]
+        if len(ok):
+            closed = True
+            best = int(ok.max())
+            x, y, ele = x[: best + 1], y[: best + 1], ele[: best + 1]
     if closed:
         # The end fix that coincides with the start would be a zero-length step across the seam.
         while len(x) > 3 and np.hypot(x[-1] - x[0], y[-1] - y[0]) < settings.min_step_m:
