@@ -363,6 +363,12 @@ def _smooth_heading(s: np.ndarray, x: np.ndarray, y: np.ndarray, theta: np.ndarr
     mid = 0.5 * (th[1:] + th[:-1])
     xi = x[0] + np.concatenate([[0.0], np.cumsum(step * np.cos(mid))])
     yi = y[0] + np.concatenate([[0.0], np.cumsum(step * np.sin(mid))])
+    if closed:
+        # Spread the closure error of the integration over the lap so the difference to the
+        # spline is periodic (the wrap-around filter below then joins the seam exactly).
+        frac = (s - s[0]) / (s[-1] - s[0])
+        xi = xi - (xi[-1] - x[-1]) * frac
+        yi = yi - (yi[-1] - y[-1]) * frac
     corr = st.drift_scale_m / ds
     xo = xi + gaussian_filter1d(x - xi, corr, mode=mode)
     yo = yi + gaussian_filter1d(y - yi, corr, mode=mode)
@@ -441,9 +447,12 @@ def _fit_altitude(s_pts: np.ndarray, z_pts: np.ndarray, length_m: float, closed:
     scale = np.full(len(s), st.altitude_scale_m)
     for _ in range(8):
         spl = _smooth(s, z, scale)
-        steep = np.abs(spl.derivative(1)(s)) > st.max_grade
-        if not steep.any():
+        grid = np.arange(s[0], s[-1], 1.0)
+        steep_grid = np.abs(spl.derivative(1)(grid)) > 0.95 * st.max_grade
+        if not steep_grid.any():
             break
-        widen = maximum_filter1d(steep, max(3, int(len(s) * 0.002)) | 1) | steep
+        # Data points within 50 m of a steep stretch get the longer smoothing length.
+        steep = np.interp(s, grid, maximum_filter1d(steep_grid.astype(float), 101)) > 0
+        widen = steep
         scale = np.where(widen, scale * 2.0, scale)
     return spl
