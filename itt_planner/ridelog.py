@@ -144,6 +144,10 @@ class RideLogWriter:
             self._channels[channel_key] = channel_id
         return channel_id
 
+    def add_metadata(self, name: str, record: dict[str, str]) -> None:
+        """Write a metadata record (string map)."""
+        self._writer.add_metadata(name, {k: str(v) for k, v in record.items()})
+
     def write_raw(self, record: RawRecord) -> None:
         """Copy a stored message as it is (schema, encoding, times and bytes)."""
         channel_id = self._channel(record.topic, record.msgtype, record.schema_encoding,
@@ -345,6 +349,18 @@ def read_ride_log(path: str | Path, *,
             a known topic has the wrong type (names the file and the topic).
     """
     return iter(RideLogReader(path, namespace=namespace))
+
+
+def message_count(path: str | Path) -> int | None:
+    """The message count from the log's statistics; None when it has no readable summary."""
+    try:
+        with Path(path).open("rb") as file:
+            summary = make_reader(file).get_summary()
+    except Exception:  # noqa: BLE001  (missing or cut-off summary: the count is unknown)
+        return None
+    if summary is None or summary.statistics is None:
+        return None
+    return int(summary.statistics.message_count)
 
 
 def _summary_channels(file: IO[bytes]) -> tuple[dict[int, Schema], dict[int, Channel]]:

@@ -36,3 +36,46 @@ def import_cli(
     with errors_to_exit(as_json):
         emit(import_ride(ride, output, rider=rider, namespace=namespace).as_dict(), as_json,
              _human_import)
+
+
+def _human_replay(r: dict[str, Any]) -> str:
+    lines = [f"replayed {r['messages_in']} messages ({r['ride_duration_s'] / 60:.1f} min of "
+             f"ride) in {r['wall_time_s']:.1f} s: {r['realtime_factor']:.1f}x real time, "
+             f"{r['advice_out']} advice ({r['fallbacks']} fallbacks)"]
+    lines += [f"  wrote {r[k]}" for k in ("output", "rrd") if r[k]]
+    lines += [f"  warning: {w}" for w in r["warnings"]]
+    lines += [f"  ERROR: {e}" for e in r["errors"]]
+    return "\n".join(lines)
+
+
+@app.command("replay")
+def replay_cli(
+    log: Path = typer.Argument(..., help="MCAP ride log (from `itt-planner import` or a bag)."),
+    course: str = typer.Option(..., "--course", help="Course: demo name, GPS track or .course.npz."),
+    rider: str = typer.Option(..., "--rider", help="Rider preset or rider YAML."),
+    out: Path | None = typer.Option(None, "--out", help="Output MCAP: inputs + advice + diagnostics."),
+    rrd: Path | None = typer.Option(None, "--rrd", help="Rerun recording of the replay (.rrd)."),
+    speed: str = typer.Option("max", "--speed", help="'max', or a multiple of real time (1, 10)."),
+    replan_period: float = typer.Option(1.0, "--replan-period", help="Stamp time between replans (s)."),
+    horizon_m: float = typer.Option(1000.0, "--horizon-m", help="Receding-horizon length (m)."),
+    model: str = typer.Option("3d", "--model", help="Full-course plan model: 3d or 1d."),
+    keep_solve_times: bool = typer.Option(
+        False, "--keep-solve-times",
+        help="Write solver wall times into the advice (the replay is then not byte-reproducible)."),
+    as_json: bool = JSON_OPTION,
+) -> None:
+    """Replay a ride log through the pacing engine; write advice to MCAP (and Rerun)."""
+    from itt_planner.errors import IttError  # noqa: PLC0415
+    from itt_planner.replay import ReplaySettings, parse_speed, replay_ride  # noqa: PLC0415
+
+    with errors_to_exit(as_json):
+        try:
+            settings = ReplaySettings(speed=parse_speed(speed), keep_solve_times=keep_solve_times)
+        except ValueError as err:
+            raise IttError(str(err)) from None
+        result = replay_ride(log, course, rider, output=out, rrd=rrd, settings=settings,
+                             replan_period_s=replan_period, horizon_m=horizon_m, model=model,
+                             progress=progress_enabled()).as_dict()
+    emit(result, as_json, _human_replay)
+    if result["errors"]:  # damaged input: everything readable was replayed and written
+        raise typer.Exit(code=1)
