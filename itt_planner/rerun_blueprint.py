@@ -25,11 +25,9 @@ def _map_view() -> rrb.View:
 
 
 def _road_view() -> rrb.View:
-    return rrb.Spatial3DView(
-        origin="/world", name="Road (ENU, 3D)",
-        # Follow the rider so the road, the target line and the path stay in frame.
-        eye_controls=rrb.EyeControls3D(tracking_entity="/world/rider"),
-    )
+    # The default eye frames the whole course; the viewer's "track entity" on world/rider
+    # follows the rider for a close look at the line.
+    return rrb.Spatial3DView(origin="/world", name="Road (ENU, 3D)")
 
 
 def _plot(origin: str, name: str) -> rrb.TimeSeriesView:
@@ -64,6 +62,6 @@ def default_blueprint(*, timeline: str = DISTANCE_TIMELINE) -> rrb.Blueprint:
         rrb.Horizontal(left, right, column_shares=[2.0, 3.0]),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(state="expanded", timeline=timeline),
+        rrb.TimePanel(state="collapsed", timeline=timeline),
         auto_views=False,
     )

@@ -18,6 +18,7 @@ import logging
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
+from urllib.parse import quote
 
 import rerun as rr
 
@@ -29,6 +30,8 @@ log = logging.getLogger(__name__)
 SinkKind = Literal["file", "spawn", "connect", "serve", "none"]
 _KINDS: tuple[SinkKind, ...] = ("file", "spawn", "connect", "serve", "none")
 DEFAULT_WEB_PORT = 9090
+#: Rerun's own default gRPC port (the native viewer listens here too).
+DEFAULT_GRPC_PORT = 9876
 
 
 @dataclass(frozen=True)
@@ -39,13 +42,13 @@ class RerunSink:
         kind: file | spawn | connect | serve | none.
         target: the `.rrd` path (file) or the gRPC URL (connect); "" otherwise.
         web_port: HTTP port of the web viewer (serve only).
-        grpc_port: port of the in-process gRPC server (serve only; None: Rerun's default).
+        grpc_port: port of the in-process gRPC server (serve only).
     """
 
     kind: SinkKind
     target: str = ""
     web_port: int = DEFAULT_WEB_PORT
-    grpc_port: int | None = None
+    grpc_port: int = DEFAULT_GRPC_PORT
 
     @classmethod
     def parse(cls, text: str) -> RerunSink:
@@ -67,6 +70,12 @@ class RerunSink:
 
     def __str__(self) -> str:
         return f"{self.kind}:{self.target}" if self.target else self.kind
+
+    @property
+    def web_viewer_url(self) -> str:
+        """The page to open for a `serve` sink (the web viewer, pointed at our gRPC server)."""
+        grpc = f"rerun+http://127.0.0.1:{self.grpc_port}/proxy"
+        return f"http://localhost:{self.web_port}/?url={quote(grpc, safe='')}"
 
     @property
     def keeps_process_alive(self) -> bool:
@@ -101,7 +110,7 @@ def open_recording(sink: RerunSink, *, app_id: str = "itt_planner",
         elif sink.kind == "serve":
             uri = rec.serve_grpc(grpc_port=sink.grpc_port, default_blueprint=blueprint)
             rr.serve_web_viewer(web_port=sink.web_port, open_browser=False, connect_to=uri)
-            log.info("Rerun web viewer at http://localhost:%d/?url=%s", sink.web_port, uri)
+            log.info("Rerun web viewer at %s (gRPC %s)", sink.web_viewer_url, uri)
     except (OSError, RuntimeError, ValueError) as err:
         raise IttError(f"rerun sink {sink}: {err}") from err
     return rec
