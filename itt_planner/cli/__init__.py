@@ -12,6 +12,7 @@ from itt_planner.cli._app import app
 # Importing the command modules registers their commands on `app`.
 from itt_planner.cli import course as _course  # noqa: F401,E402
 from itt_planner.cli import ridelog as _ridelog  # noqa: F401,E402
+from itt_planner.cli import report as _report  # noqa: F401,E402
 
 
 def main() -> None:
