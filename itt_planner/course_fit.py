@@ -10,13 +10,15 @@ pipeline here:
 3. detect a closed loop (end within `closed_loop_gap_m` of the start on a long track) and
    treat it periodically: the data is wrapped around the seam before smoothing, so the
    centre line has no kink or gap where the lap closes;
-4. fit x(u), y(u) with cubic smoothing splines (`scipy.interpolate.make_smoothing_spline`)
-   whose smoothing length adapts to the road: long (~45 m) on straights, where it keeps
-   the noise out of the curvature, and about half the local radius in corners, so a
-   12 m hairpin stays a 12 m hairpin. The radius that sets the length comes from the
-   previous pass (a few passes, each O(n));
-5. resample at uniform arc length of the fitted curve, with heading and curvature taken
-   analytically from the spline derivatives;
+4. fit x(u), y(u) with cubic smoothing splines (`scipy.interpolate.make_smoothing_spline`,
+   three O(n) passes): two with a moderate smoothing length that locate the corners and
+   re-parametrise each fix by its foot point on the curve, then one whose smoothing length
+   adapts to the road (30 m on straights, where it keeps the noise out of the curvature,
+   0.45 x the local radius but at least 12 m in corners). All lengths scale with the noise
+   measured after the first pass;
+5. resample at uniform arc length of the fitted curve, heading from the spline derivative,
+   then a Gaussian filter on the heading (spreads the curvature bursts that the last few
+   fixes of noise leave in a corner) and positions re-integrated from it;
 6. fit altitude z(s) with a much longer smoothing length (barometric and GPS altitude
    jitter by metres, which would make metre-scale grades absurd).
 
