@@ -1,0 +1,267 @@
+"""The minimum-time pacing-and-cornering OCP over a whole course (model.md section 5).
+
+`solve_plan(course, rider, conditions, settings, model="3d"|"1d") -> Plan`:
+
+1. mesh: non-uniform nodes (`mesh.build_mesh`: ~1 m in corners, up to `h_max_m` on
+   straights) and the road data per interval;
+2. transcription: direct multiple shooting with RK4 (`transcription.transcribe`,
+   why in its docstring), hard path constraints C11-C16;
+3. solve: IPOPT (MUMPS) from a physically sensible initial guess (a speed profile that
+   respects the grip limit in corners, steady lean and steering), with an iteration and
+   CPU-time cap, so bad settings end with a solver status instead of a hang.
+
+Boundary conditions (model.md section 5): upright on the centre line, `W_n = W_C/W_max`,
+`E_n = 1`, end state free. Launch: the start speed is raised from `start_speed_mps` just
+enough that the start power's tyre force uses at most `_LAUNCH_GRIP` of the grip, which
+keeps wet-road starts feasible (model.md, launch note).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import asdict, dataclass
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from itt_planner.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.course import Course
+from itt_planner.errors import SolveError
+from itt_planner.mesh import build_mesh, road_data
+from itt_planner.model import ModelParams, SpatialModel, build_model, steady_speed_mps
+from itt_planner.plan import Plan
+from itt_planner.rider import Rider
+from itt_planner.transcription import Transcription, transcribe
+from itt_planner.wprime import WPrimeModel
+
+log = logging.getLogger(__name__)
+
+#: Share of the grip the launch may use at the start node (model.md launch note).
+_LAUNCH_GRIP = 0.8
+#: Share of the lateral grip the initial guess uses in corners.
+_GUESS_GRIP = 0.7
+#: Bounds on the normalised rates u (model.md C13/C14 note: loose, for robustness).
+U_DELTA_MAX = 20.0
+U_W_MAX = 50.0
+#: Lowest speed the NLP allows (keeps 1/s_dot finite), m/s.
+V_MIN_MPS = 0.5
+#: Interval length (m) above which the RK4 integrator takes several substeps.
+_SUBSTEP_M = 4.0
+
+
+@dataclass(frozen=True)
+class OcpSettings:
+    """Mesh, boundary and solver settings of the full-course OCP.
+
+    Attributes:
+        h_min_m, h_max_m: finest and coarsest mesh intervals.
+        uniform_m: if set, a uniform mesh of this spacing instead (for mesh studies).
+        margin_m: distance kept from each road edge (half the bike width + safety), C11.
+        start_speed_mps: speed at the start line (raised for low grip, see module doc).
+        e_final_min: lower bound on E_n at the finish (C12).
+        w_delta, w_power: objective weights w_1, w_2 (model.md section 5).
+        wprime_model: E9 variant.
+        max_iter, max_cpu_time_s: hard caps of the solver.
+        tol: IPOPT's convergence tolerance.
+        jit: compile the stage kernels to C with the machine's compiler (cached).
+    """
+
+    h_min_m: float = 1.0
+    h_max_m: float = 10.0
+    uniform_m: float | None = None
+    margin_m: float = 0.5
+    start_speed_mps: float = 1.0
+    e_final_min: float = 0.0
+    w_delta: float = 0.01
+    w_power: float = 0.01
+    wprime_model: WPrimeModel = WPrimeModel.SKIBA
+    max_iter: int = 400
+    max_cpu_time_s: float = 120.0
+    tol: float = 1e-6
+    jit: bool = True
+
+
+def substeps_for(h_max_m: float) -> int:
+    """RK4 substeps so that no substep exceeds `_SUBSTEP_M` (roll time constant ~0.45 s)."""
+    return max(1, math.ceil(h_max_m / _SUBSTEP_M - 1e-9))
+
+
+@lru_cache(maxsize=16)
+def _model(kind: str, wprime_model: WPrimeModel) -> SpatialModel:
+    return build_model(kind, wprime_model)
+
+
+@lru_cache(maxsize=8)
+def _solver(kind: str, wprime_model: WPrimeModel, n_intervals: int, substeps: int,
+            jit: bool, max_iter: int, max_cpu_time_s: float, tol: float
+            ) -> tuple[Transcription, ca.Function]:
+    """The NLP and its IPOPT solver for one node count (built once per process)."""
+    tr = transcribe(_model(kind, wprime_model), n_intervals, substeps=substeps, compile_c=jit)
+    opts = {**tr.derivatives,
+        "ipopt.max_iter": max_iter, "ipopt.max_cpu_time": max_cpu_time_s, "ipopt.tol": tol,
+        "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
+        "ipopt.mu_strategy": "adaptive", "ipopt.linear_solver": "mumps",
+        "error_on_fail": False,
+        # Derivatives come from the compiled stage kernels (transcription docstring); the
+        # Lagrangian gradient w.r.t. p that nlpsol would build by AD is not needed.
+        "no_nlp_grad": True, "calc_lam_p": False,
+    }
+    return tr, ca.nlpsol(f"ocp_{kind}_{n_intervals}", "ipopt", tr.nlp, opts)
+
+
+def start_speed(rider: Rider, conditions: Conditions, settings: OcpSettings) -> float:
+    """Start speed: at least `start_speed_mps`, and enough for the start power's grip."""
+    grip_force = _LAUNCH_GRIP * conditions.mu_x * GRAVITY_MPS2 * rider.mass_kg
+    return max(settings.start_speed_mps, rider.critical_power_w / grip_force, V_MIN_MPS)
+
+
+def check_inputs(course: Course, rider: Rider, settings: OcpSettings) -> None:
+    """Reject inputs no solver can use.
+
+    Raises:
+        SolveError: status "invalid_input": the road is narrower than the bike anywhere.
+    """
+    room = course.width_left_m + course.width_right_m - 2 * settings.margin_m
+    if np.any(room <= 0):
+        i = int(np.argmin(room))
+        msg = (f"course {course.name!r}: road at s = {course.s_m[i]:.0f} m is "
+               f"{course.width_left_m[i] + course.width_right_m[i]:.2f} m wide, narrower than "
+               f"the bike and margins ({2 * settings.margin_m:.2f} m)")
+        raise SolveError(msg, status="invalid_input")
+    del rider  # validated by Rider itself
+
+
+def speed_guess(course: Course, nodes: np.ndarray, rider: Rider, conditions: Conditions,
+                v0: float, corners: bool) -> np.ndarray:
+    """A speed profile to start from: steady speed at CP on the local grade, capped by
+    `_GUESS_GRIP` of the lateral grip in corners, with bounded acceleration/deceleration."""
+    grade = np.tan(course.at("beta_rad", nodes))
+    v = np.array([steady_speed_mps(rider.critical_power_w, rider, conditions, g) for g in grade])
+    v = np.maximum(v, 2.0)
+    if corners:
+        kappa = np.abs(course.at("kappa_per_m", nodes)) + 1e-9
+        v = np.minimum(v, np.sqrt(_GUESS_GRIP * conditions.mu_y * GRAVITY_MPS2 / kappa))
+    ds = np.diff(nodes)
+    v[0] = v0
+    for i in range(1, len(v)):  # accelerate at <= 1 m/s^2
+        v[i] = min(v[i], math.sqrt(v[i - 1] ** 2 + 2 * 1.0 * ds[i - 1]))
+    for i in range(len(v) - 2, 0, -1):  # brake at <= 3 m/s^2
+        v[i] = min(v[i], math.sqrt(v[i + 1] ** 2 + 2 * 3.0 * ds[i]))
+    return v
+
+
+def initial_guess(model: SpatialModel, course: Course, nodes: np.ndarray, rider: Rider,
+                  conditions: Conditions, v0: float) -> tuple[np.ndarray, np.ndarray]:
+    """States (nx x N+1) and controls (nu x N) to start the NLP from."""
+    v = speed_guess(course, nodes, rider, conditions, v0, corners=model.name == "3d")
+    x = np.zeros((model.nx, len(nodes)))
+    x[model.index("v")] = v
+    x[model.index("w_n")] = rider.critical_power_w / rider.max_power_w
+    x[model.index("e_n")] = 1.0 - 0.95 * (nodes - nodes[0]) / max(nodes[-1] - nodes[0], 1.0)
+    if model.name == "3d":
+        kappa = course.at("kappa_per_m", nodes)
+        # Steady turn on the centre line: tan(delta) = L kappa, tan(phi) = -v^2 kappa / g (E5).
+        x[model.index("delta_n")] = np.arctan(rider.wheelbase_m * kappa) / rider.steer_max_rad
+        x[model.index("phi")] = -np.arctan(v ** 2 * kappa / GRAVITY_MPS2)
+    return x, np.zeros((model.nu, len(nodes) - 1))
+
+
+def bounds(model: SpatialModel, course: Course, nodes: np.ndarray, rider: Rider,
+           settings: OcpSettings, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Simple bounds on the states and controls per node (C11-C14, v >= v_min)."""
+    n = len(nodes)
+    lbx = np.full((model.nx, n), -np.inf)
+    ubx = np.full((model.nx, n), np.inf)
+    lbx[model.index("v")] = V_MIN_MPS
+    lbx[model.index("w_n")], ubx[model.index("w_n")] = -1.0, 1.0  # C13
+    lbx[model.index("e_n")], ubx[model.index("e_n")] = 0.0, 1.0  # C12
+    lbx[model.index("e_n"), -1] = settings.e_final_min
+    if model.name == "3d":
+        lbx[model.index("n")] = -(course.at("width_right_m", nodes) - settings.margin_m)  # C11
+        ubx[model.index("n")] = course.at("width_left_m", nodes) - settings.margin_m
+        lbx[model.index("delta_n")], ubx[model.index("delta_n")] = -1.0, 1.0  # C14
+        lbx[model.index("alpha")], ubx[model.index("alpha")] = -1.0, 1.0
+        lbx[model.index("phi")], ubx[model.index("phi")] = -1.2, 1.2
+    lbx[:, 0] = ubx[:, 0] = x0
+    u_max = np.array([U_DELTA_MAX, U_W_MAX])[-model.nu:, None]
+    lbu = np.repeat(-u_max, n - 1, axis=1)
+    return (lbx, ubx), (lbu, -lbu)
+
+
+def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions(),
+               settings: OcpSettings = OcpSettings(), *, model: str = "3d") -> Plan:
+    """Solve the minimum-time OCP over the whole course and return the `Plan`.
+
+    A solve that does not converge (iteration/time cap, infeasible) still returns a Plan,
+    with `solver_status` saying so.
+
+    Raises:
+        SolveError: unusable input (status "invalid_input"), e.g. a road narrower than the
+            bike, or an unknown model name.
+    """
+    if model not in ("3d", "1d"):
+        raise SolveError(f"unknown model {model!r}: choose '3d' or '1d'", status="invalid_input")
+    check_inputs(course, rider, settings)
+    t_start = time.perf_counter()
+    nodes = build_mesh(course, settings.h_min_m, settings.h_max_m, settings.uniform_m)
+    n = len(nodes) - 1
+    h_max = float(np.max(np.diff(nodes)))
+    tr, solver = _solver(model, settings.wprime_model, n, substeps_for(h_max), settings.jit,
+                         settings.max_iter, settings.max_cpu_time_s, settings.tol)
+    spm = tr.model
+    par = ModelParams(rider, conditions, settings.w_delta, settings.w_power).vector()
+    v0 = start_speed(rider, conditions, settings)
+    x_guess, u_guess = initial_guess(spm, course, nodes, rider, conditions, v0)
+    x0 = x_guess[:, 0].copy()
+    (lbx, ubx), (lbu, ubu) = bounds(spm, course, nodes, rider, settings, x0)
+    lay = tr.layout
+    p = tr.params(road_data(course, nodes), par)
+    t_build = time.perf_counter() - t_start
+    sol = solver(x0=lay.join(np.clip(x_guess, lbx, ubx), u_guess), p=p,
+                 lbx=lay.join(lbx, lbu), ubx=lay.join(ubx, ubu), lbg=tr.lbg, ubg=tr.ubg)
+    stats = solver.stats()
+    elapsed = time.perf_counter() - t_start
+    status = str(stats.get("return_status", "unknown"))
+    if not stats.get("success", False):
+        log.warning("full-course %s OCP on %s: %s after %s iterations", model, course.name,
+                    status, stats.get("iter_count"))
+    w = np.asarray(sol["x"]).ravel()
+    meta = {"course": course.name, "course_sha256": course.source_sha256,
+            "rider": asdict(rider), "conditions": asdict(conditions),
+            "settings": {k: (v.value if isinstance(v, WPrimeModel) else v)
+                         for k, v in asdict(settings).items()},
+            "build_time_s": t_build, "objective": float(sol["f"]),
+            "success": bool(stats.get("success", False))}
+    return to_plan(tr, w, p, nodes, rider, status=status,
+                   iterations=int(stats.get("iter_count", 0)), solve_time_s=elapsed, meta=meta)
+
+
+def to_plan(tr: Transcription, w: np.ndarray, p: np.ndarray, nodes: np.ndarray, rider: Rider,
+            *, status: str, iterations: int, solve_time_s: float, meta: dict) -> Plan:
+    """Turn a numeric NLP solution into a `Plan` (SI units, lateral arrays 0 for 1D)."""
+    spm = tr.model
+    x, u, _ = tr.layout.split(w)
+    dt, y = (np.asarray(a) for a in tr.evaluate(w, p))
+    t = np.concatenate([[0.0], np.cumsum(dt.ravel())])
+    zeros = np.zeros(len(nodes))
+
+    def state(name: str) -> np.ndarray:
+        return x[spm.index(name)] if name in spm.states else zeros
+
+    def control(name: str) -> np.ndarray:
+        row = u[spm.controls.index(name)] if name in spm.controls else zeros[:-1]
+        return np.append(row, row[-1])  # controls hold over intervals; repeat the last
+
+    e_n = state("e_n")
+    return Plan(
+        model=spm.name, s_m=np.asarray(nodes, float), t_s=t, n_m=state("n"),
+        alpha_rad=state("alpha"), phi_rad=state("phi"), phi_dot_radps=state("phi_dot"),
+        v_mps=state("v"), w_n=state("w_n"), delta_n=state("delta_n"), e_n=e_n,
+        u_delta=control("u_delta"), u_w=control("u_w"), power_w=y[0], w_prime_j=e_n * rider.w_prime_j,
+        ax_mps2=y[1], ay_mps2=y[2], friction_use=y[3], solver_status=status,
+        iterations=iterations, solve_time_s=solve_time_s, meta=meta,
+    )
+
