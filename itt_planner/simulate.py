@@ -16,52 +16,60 @@ runs.
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from enum import Enum
 
+import casadi as ca
 import numpy as np
 
-from itt_planner.course import Course, GeoOrigin
+from itt_planner.advice import Advice
+from itt_planner.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.course import Course
+from itt_planner.course_builder import build_course
+from itt_planner.engine import EngineSettings, PacingEngine
+from itt_planner.errors import IttError
+from itt_planner.model import PARAMS, ModelParams, build_3d
+from itt_planner.plan import Plan
+from itt_planner.rider import Rider
 from itt_planner.samples import GpsFix, PowerReading, Sample, WheelSpeed
 
 
 # ---- a short technical test course ---------------------------------------------------------
-#: (length m, signed radius m: + left, - right, 0 straight, grade) of `hairpin_course`.
-_HAIRPIN_SEGMENTS = (
-    (500.0, 0.0, 0.02),
-    (1.5 * math.pi * 50.0, 50.0, 0.0),  # 270 deg left: the road then crosses itself
-    (400.0, 0.0, -0.01),
-    (0.5 * math.pi * 30.0, -30.0, 0.0),
-    (300.0, 0.0, -0.03),
-    (math.pi * 12.0, 12.0, 0.0),  # the hairpin
-    (500.0, 0.0, 0.01),
-    (0.25 * math.pi * 40.0, -40.0, 0.0),  # S-bend
-    (0.25 * math.pi * 40.0, 40.0, 0.0),
-    (600.0, 0.0, 0.0),
-)
+#: Segments (course_builder format) of `hairpin_course`: a climb, a 270 deg bend whose
+#: exit crosses the first straight, a 12 m hairpin on a descent, an S-bend.
+HAIRPIN_COURSE = {
+    "name": "hairpin-test",
+    "description": "SYNTHETIC ~2.8 km technical test course of the closed-loop tests.",
+    "origin": {"lat_deg": 45.43, "lon_deg": 10.99, "alt_m": 100.0},
+    "segments": [
+        {"type": "straight", "length_m": 500, "grade_pct": 2},
+        {"type": "clothoid", "length_m": 15, "radius_m": 50, "direction": "left"},
+        {"type": "arc", "angle_deg": 253, "radius_m": 50, "direction": "left"},
+        {"type": "clothoid", "length_m": 15},
+        {"type": "straight", "length_m": 400, "grade_pct": -1},
+        {"type": "clothoid", "length_m": 12, "radius_m": 30, "direction": "right"},
+        {"type": "arc", "angle_deg": 67, "radius_m": 30, "direction": "right"},
+        {"type": "clothoid", "length_m": 12},
+        {"type": "straight", "length_m": 300, "grade_pct": -3},
+        {"type": "clothoid", "length_m": 10, "radius_m": 12, "direction": "left", "grade_pct": -3},
+        {"type": "arc", "angle_deg": 130, "radius_m": 12, "direction": "left"},
+        {"type": "clothoid", "length_m": 10},
+        {"type": "straight", "length_m": 500, "grade_pct": 1},
+        {"type": "clothoid", "length_m": 10, "radius_m": 40, "direction": "right"},
+        {"type": "arc", "angle_deg": 30, "radius_m": 40, "direction": "right"},
+        {"type": "clothoid", "length_m": 20, "radius_m": 40, "direction": "left"},
+        {"type": "arc", "angle_deg": 30, "radius_m": 40, "direction": "left"},
+        {"type": "clothoid", "length_m": 10},
+        {"type": "straight", "length_m": 600},
+    ],
+}
 
 
 def hairpin_course(ds_m: float = 1.0) -> Course:
-    """A ~3 km synthetic course: climb, a 270 deg bend whose exit crosses the first
-    straight, a 12 m hairpin, an S-bend. Curvature is smoothed over ~10 m (a real road
-    has transition curves)."""
-    kappa_parts, grade_parts = [], []
-    for length, radius, grade in _HAIRPIN_SEGMENTS:
-        n = int(round(length / ds_m))
-        kappa_parts.append(np.full(n, 0.0 if radius == 0 else 1.0 / radius))
-        grade_parts.append(np.full(n, grade))
-    kappa = np.concatenate(kappa_parts)
-    kernel = np.ones(int(10 / ds_m)) / int(10 / ds_m)
-    kappa = np.convolve(kappa, kernel, mode="same")
-    theta = np.concatenate([[0.0], np.cumsum(kappa) * ds_m])[:-1]
-    x = np.concatenate([[0.0], np.cumsum(np.cos(theta)) * ds_m])[:-1]
-    y = np.concatenate([[0.0], np.cumsum(np.sin(theta)) * ds_m])[:-1]
-    z = 100.0 + np.concatenate([[0.0], np.cumsum(np.concatenate(grade_parts)) * ds_m])[:-1]
-    return Course.from_centerline(
-        "hairpin-test", x, y, z, origin=GeoOrigin(45.43, 10.99, 100.0), ds_m=ds_m,
-        theta_rad=theta, kappa_per_m=kappa, source="itt_planner.simulate.hairpin_course",
-        synthetic=True,
-    )
+    """The ~2.8 km synthetic technical course `HAIRPIN_COURSE` (course_builder)."""
+    return build_course(HAIRPIN_COURSE, source="itt_planner.simulate.HAIRPIN_COURSE", ds_m=ds_m)
 
 
 # ---- sensors ---------------------------------------------------------------------------------
@@ -76,8 +84,8 @@ class SensorSettings:
     Attributes:
         gps_period_s: fix interval (1 Hz).
         wheel_scale: the wheel sensor's circumference error (1.01 = reads 1 % fast).
-        dropouts: (start stamp, duration) intervals without GPS.
-        outliers: stamps at which the fix jumps `outlier_m` sideways.
+        dropouts: (start, duration) intervals of ride time without GPS.
+        outliers: ride times at which the fix jumps `outlier_m` sideways.
     """
 
     gps_period_s: float = 1.0
@@ -94,42 +102,456 @@ class SensorSettings:
     outlier_m: float = 100.0
 
 
+class Sensors:
+    """GPS, wheel-speed and power sensors sampling a true trajectory at their own rates.
+
+    Args:
+        course: for ENU <-> lat/lon.
+        settings: noise levels, dropouts and outliers.
+        rng: the random stream (seeded by the caller for reproducible rides).
+        t0_s: stamp of ride time 0 (POSIX seconds for a realistic log).
+    """
+
+    def __init__(self, course: Course, settings: SensorSettings, rng: np.random.Generator,
+                 t0_s: float = 0.0) -> None:
+        self.course, self.settings, self.rng, self.t0_s = course, settings, rng, t0_s
+        st = settings
+        self._white = st.gps_std_m * math.sqrt(st.gps_white_fraction)
+        self._bias_std = st.gps_std_m * math.sqrt(1 - st.gps_white_fraction)
+        self._bias = rng.normal(0.0, self._bias_std, 2)
+        self._next = {"gps": 0.0, "speed": 0.0, "power": 0.0}
+
+    def sample(self, t: float, s_m: float, n_m: float, v_mps: float, power_w: float
+               ) -> list[Sample]:
+        """The samples due at ride time `t` (each sensor fires once its period is up)."""
+        st, out = self.settings, []
+        eps = 1e-9
+        if t + eps >= self._next["gps"]:
+            self._next["gps"] += st.gps_period_s
+            fix = self._gps(t, s_m, n_m)
+            if fix is not None:
+                out.append(fix)
+        if t + eps >= self._next["speed"]:
+            self._next["speed"] += st.speed_period_s
+            v = v_mps * st.wheel_scale + self.rng.normal(0.0, st.speed_std_mps)
+            out.append(WheelSpeed(self.t0_s + t, max(v, 0.0)))
+        if t + eps >= self._next["power"]:
+            self._next["power"] += st.power_period_s
+            # A power meter measures pedalling only: braking reads as zero.
+            p = max(power_w + self.rng.normal(0.0, st.power_std_w), 0.0) if power_w > 0 else 0.0
+            out.append(PowerReading(self.t0_s + t, p))
+        return out
+
+    def _gps(self, t: float, s_m: float, n_m: float) -> GpsFix | None:
+        st = self.settings
+        a = math.exp(-st.gps_period_s / st.gps_tau_s)
+        self._bias = a * self._bias + math.sqrt(1 - a * a) * self.rng.normal(
+            0.0, self._bias_std, 2)
+        if any(d0 <= t < d0 + dur for d0, dur in st.dropouts):
+            return None
+        x, y, z = (float(c) for c in self.course.enu_at(s_m, n_m))
+        ex, ey = self._bias + self.rng.normal(0.0, self._white, 2)
+        if any(abs(t - o) < 1e-6 for o in st.outliers):
+            th = float(self.course.at("theta_rad", s_m))
+            ex, ey = ex - st.outlier_m * math.sin(th), ey + st.outlier_m * math.cos(th)
+        lat, lon, alt = self.course.to_geodetic(x + ex, y + ey, z)
+        return GpsFix(self.t0_s + t, float(lat), float(lon), float(alt), st.gps_std_m)
+
+
 def sensor_samples(course: Course, t_s: np.ndarray, s_m: np.ndarray, n_m: np.ndarray,
                    v_mps: np.ndarray, power_w: np.ndarray, rng: np.random.Generator,
                    settings: SensorSettings = SensorSettings(), t0_s: float = 0.0
                    ) -> list[Sample]:
-    """Stamped GPS, wheel-speed and power samples of a true trajectory, sorted by stamp.
+    """All samples of a recorded true trajectory (arrays over `t_s`), in stamp order."""
+    sensors = Sensors(course, settings, rng, t0_s)
+    out: list[Sample] = []
+    for k in range(len(t_s)):
+        out += sensors.sample(float(t_s[k]), float(s_m[k]), float(n_m[k]), float(v_mps[k]),
+                              float(power_w[k]))
+    return out
 
-    The truth is interpolated at each sensor's own rate; `t0_s` offsets the stamps.
-    Power is the pedalling power (braking is not measured by a power meter).
+
+# ---- scenarios --------------------------------------------------------------------------------
+class Scenario(str, Enum):
+    """How the truth differs from the planner's belief (issue 4, item 5)."""
+
+    NOMINAL = "nominal"
+    CP_OVERESTIMATED = "cp-overestimated"
+    HEADWIND = "headwind"
+    HOT_START = "hot-start"
+
+
+class Policy(str, Enum):
+    """What the simulated rider follows."""
+
+    REPLANNED = "replanned"  # the pacing engine's advice, replanned in the loop
+    OPEN_LOOP = "open_loop"  # the full-course plan, blindly
+    EVEN_CP = "even_cp"  # constant critical power (the plan's line and corner speeds)
+
+
+@dataclass(frozen=True)
+class ScenarioSettings:
+    """Magnitudes of the scenarios.
+
+    Attributes:
+        cp_factor: true CP / believed CP in `cp-overestimated`.
+        headwind_mps: unforecast head wind over the second half in `headwind`.
+        hot_start_m: how far the rider ignores advice in `hot-start` (clipped to a third
+            of the course so short test courses keep a part to recover on) ...
+        hot_start_factor: ... riding this factor times the plan's power.
     """
-    st = settings
-    samples: list[tuple[float, int, Sample]] = []
-    t_end = float(t_s[-1])
-    # GPS: Gauss-Markov bias + white noise, per axis.
-    white = st.gps_std_m * math.sqrt(st.gps_white_fraction)
-    bias_std = st.gps_std_m * math.sqrt(1 - st.gps_white_fraction)
-    a = math.exp(-st.gps_period_s / st.gps_tau_s)
-    bias = rng.normal(0.0, bias_std, 2)
-    for t in np.arange(0.0, t_end, st.gps_period_s):
-        bias = a * bias + math.sqrt(1 - a * a) * rng.normal(0.0, bias_std, 2)
-        if any(d0 <= t < d0 + dur for d0, dur in st.dropouts):
-            continue
-        s, n = np.interp(t, t_s, s_m), np.interp(t, t_s, n_m)
-        x, y, z = course.enu_at(s, n)
-        ex, ey = bias + rng.normal(0.0, white, 2)
-        if any(abs(t - o) < 1e-9 for o in st.outliers):
-            th = float(course.at("theta_rad", s))
-            ex, ey = ex - st.outlier_m * math.sin(th), ey + st.outlier_m * math.cos(th)
-        lat, lon, alt = course.to_geodetic(float(x) + ex, float(y) + ey, float(z))
-        samples.append((t0_s + t, 0, GpsFix(t0_s + t, float(lat), float(lon), float(alt),
-                                            st.gps_std_m)))
-    for t in np.arange(0.0, t_end, st.speed_period_s):
-        v = float(np.interp(t, t_s, v_mps)) * st.wheel_scale + rng.normal(0.0, st.speed_std_mps)
-        samples.append((t0_s + t, 1, WheelSpeed(t0_s + t, max(v, 0.0))))
-    for t in np.arange(0.0, t_end, st.power_period_s):
-        p = max(float(np.interp(t, t_s, power_w)), 0.0)
-        p = max(p + rng.normal(0.0, st.power_std_w), 0.0) if p > 0 else 0.0
-        samples.append((t0_s + t, 2, PowerReading(t0_s + t, p)))
-    samples.sort(key=lambda item: (item[0], item[1]))
-    return [item[2] for item in samples]
+
+    cp_factor: float = 0.95
+    headwind_mps: float = 3.0
+    hot_start_m: float = 2000.0
+    hot_start_factor: float = 1.15
+
+
+@dataclass(frozen=True)
+class RiderBehaviour:
+    """The simulated rider's imperfections: lag and noise in following a power target,
+    and the gains of the path-following controller (steering by lean, section notes in
+    `_closed_loop_step`).
+
+    Attributes:
+        power_lag_s: first-order lag of the delivered power behind the target.
+        power_noise: relative 1-sigma of the rider's power wander ...
+        power_noise_tau_s: ... and its correlation time.
+        brake_margin_mps: the rider brakes when faster than the advised speed by this.
+        brake_lookahead_s: ... looking this far ahead along the advised profile.
+        w_reserve: below this fraction of W' the rider cannot exceed CP (exhausted).
+    """
+
+    power_lag_s: float = 0.8
+    power_noise: float = 0.03
+    power_noise_tau_s: float = 5.0
+    brake_margin_mps: float = 1.0
+    brake_lookahead_s: float = 0.5
+    w_reserve: float = 0.005
+    k_lateral_ps: float = 0.3
+    k_heading_ps: float = 1.0
+    roll_omega_radps: float = 6.0
+    steer_preview_s: float = 0.3
+
+
+# ---- the closed-loop dynamics -----------------------------------------------------------------
+#: State and reference layout of `_closed_loop_step`.
+_REFS = ("n_ref", "dn_ref_ds", "w_cmd", "v_brake", "kappa_preview")
+
+
+def _closed_loop_step(behaviour: RiderBehaviour, substeps: int) -> ca.Function:
+    """One time step of the 3D model (E1-E9 via `model.build_3d`) under the rider's
+    controller: `(x, s, road, p, ref, dt) -> (x_next, s_next)`.
+
+    Time domain: `dx/dt = (dx/ds) / (dt/ds)` and `ds/dt = 1 / (dt/ds)` (E8).
+    Lateral control, a cascade any rider does without thinking: the heading error to the
+    reference line sets a desired yaw rate; the steady lean of that turn,
+    `tan(phi) = -v r / g` (E5), is the desired lean; steering is chosen so the roll
+    dynamics E5 follow it with a critically damped response (feedback linearisation of
+    E5 for the yaw rate, then `delta = atan(r L / v)`). Steering is imposed directly
+    (its rate is unbounded in the model, C14 bounds its angle). Power: the target
+    (normalised `W_n`) with a first-order lag, braking when faster than the advised
+    speed, no pedalling at high lean (C15), and at most CP when W' is exhausted.
+    """
+    b = behaviour
+    model = build_3d()
+    x = ca.SX.sym("x", model.nx)
+    s = ca.SX.sym("s")
+    road = ca.SX.sym("road", 4)
+    p = ca.SX.sym("p", len(PARAMS))
+    ref = ca.SX.sym("ref", len(_REFS))
+    dt = ca.SX.sym("dt")
+    q = {name: p[i] for i, name in enumerate(PARAMS)}
+    g = GRAVITY_MPS2
+    n_ref, dn_ref_ds, w_target, v_brake, kappa_ff = (ref[i] for i in range(len(_REFS)))
+    i_delta = model.index("delta_n")
+
+    def controlled(xk: ca.SX) -> tuple[ca.SX, ca.SX]:
+        n, alpha, phi, phi_dot, v, w_n, _, e_n = (xk[i] for i in range(model.nx))
+        kappa = road[0]
+        one_nk = 1 - n * kappa
+        s_dot = v * ca.cos(alpha) / one_nk
+        alpha_ref = ca.atan(dn_ref_ds * one_nk)
+        # The lateral loop must stay well slower than the heading loop: its gain in
+        # 1/s is `k_lateral_ps` whatever the speed (dn/dt = v alpha).
+        err_n = ca.fmin(ca.fmax(b.k_lateral_ps * (n - n_ref) / ca.fmax(v, 3.0), -0.3), 0.3)
+        # Feed-forward on the curvature a moment ahead: leaning in takes time.
+        yaw_des = kappa_ff * s_dot + b.k_heading_ps * (alpha_ref - err_n - alpha)
+        phi_des = -ca.atan(v * yaw_des / g)
+        omega = b.roll_omega_radps
+        phi_ddot_des = -omega ** 2 * (phi - phi_des) - 2 * omega * phi_dot
+        i_x0 = q["roll_inertia"] + q["com_height"] ** 2 * q["mass"]
+        c = q["com_height"] * q["mass"] / i_x0
+        v_safe = ca.fmax(v, 0.5)
+        yaw_cmd = (phi_ddot_des / c - g * ca.sin(phi)) / (v_safe * ca.cos(phi))
+        delta = ca.atan(yaw_cmd * q["wheelbase"] / v_safe)
+        delta = ca.fmin(ca.fmax(delta, -q["steer_max"]), q["steer_max"])
+        x_ctrl = ca.vertcat(xk[:i_delta], delta / q["steer_max"], xk[i_delta + 1:])
+        # Power command.
+        over = v - v_brake - b.brake_margin_mps
+        w_cmd = ca.if_else(over > 0, ca.fmin(w_target, -0.5 * over), w_target)
+        w_cmd = ca.fmax(w_cmd, -1)
+        gate = ca.fmax(0, 1 - (phi / q["pedal_lean"]) ** 2)  # C15
+        w_cmd = ca.fmin(w_cmd, gate)
+        cap = (q["cp"] - 10.0) / q["p_max"]  # exhausted: below CP (E9 smoothing ~5 W)
+        w_cmd = ca.if_else(e_n < b.w_reserve, ca.fmin(w_cmd, cap), w_cmd)
+        u_w = (w_cmd - w_n) / b.power_lag_s * q["p_max"] / q["power_rate_max"]
+        return x_ctrl, ca.vertcat(0, u_w)
+
+    def deriv(xk: ca.SX) -> tuple[ca.SX, ca.SX]:
+        x_ctrl, u = controlled(xk)
+        dxds, dtds, _ = model.ode(x_ctrl, u, road, p)
+        xdot = dxds / dtds
+        xdot[i_delta] = 0  # steering is imposed, not integrated
+        return xdot, 1 / dtds
+
+    h = dt / substeps
+    xk, sk = x, s
+    for _ in range(substeps):
+        k1, s1 = deriv(xk)
+        k2, s2 = deriv(xk + h / 2 * k1)
+        k3, s3 = deriv(xk + h / 2 * k2)
+        k4, s4 = deriv(xk + h * k3)
+        xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        sk = sk + h / 6 * (s1 + 2 * s2 + 2 * s3 + s4)
+    x_final, _ = controlled(xk)  # report the steering actually applied
+    outputs = model.outputs(x_final, p)
+    return ca.Function("closed_loop_step", [x, s, road, p, ref, dt],
+                       [x_final, sk, outputs], ["x", "s", "road", "p", "ref", "dt"],
+                       ["x_next", "s_next", "y"])
+
+
+# ---- the ride ---------------------------------------------------------------------------------
+@dataclass(eq=False)
+class SimResult:
+    """One simulated ride: truth arrays over time, sensor samples, advice.
+
+    Attributes:
+        t_s, s_m, n_m, v_mps, power_w, w_prime_j, friction_use: the truth every step
+            (`power_w` at the contact point, negative when braking; W' with the TRUE CP).
+        samples: every sensor sample, in stamp order (what a bag of the ride holds).
+        advice: every advice of the engine (replanned rides only).
+        finish_time_s: time at the finish line (NaN when `max_time_s` ran out first).
+        solve_times_s: wall-clock replan latencies of the engine.
+    """
+
+    scenario: Scenario
+    policy: Policy
+    t_s: np.ndarray
+    s_m: np.ndarray
+    n_m: np.ndarray
+    v_mps: np.ndarray
+    power_w: np.ndarray
+    w_prime_j: np.ndarray
+    friction_use: np.ndarray
+    samples: list[Sample] = field(default_factory=list)
+    advice: list[Advice] = field(default_factory=list)
+    finish_time_s: float = math.nan
+    solve_times_s: list[float] = field(default_factory=list)
+    fallbacks: int = 0
+
+    def summary(self) -> dict[str, float]:
+        """finish_time_s, w_prime_min_j, w_prime_end_j (and fallbacks), JSON-ready."""
+        return {"finish_time_s": round(float(self.finish_time_s), 3),
+                "w_prime_min_j": round(float(self.w_prime_j.min()), 1),
+                "w_prime_end_j": round(float(self.w_prime_j[-1]), 1),
+                "max_friction_use": round(float(self.friction_use.max()), 3),
+                "fallbacks": self.fallbacks}
+
+
+class _Reference:
+    """What the rider follows: a profile over `s` (advice horizon or the whole plan)."""
+
+    def __init__(self, s_m: np.ndarray, power_w: np.ndarray, v_mps: np.ndarray,
+                 n_m: np.ndarray) -> None:
+        self.s_m, self.power_w, self.v_mps, self.n_m = s_m, power_w, v_mps, n_m
+        self.dn_ds = np.gradient(n_m, s_m) if len(s_m) > 1 else np.zeros(1)
+
+    @classmethod
+    def of_plan(cls, plan: Plan) -> _Reference:
+        return cls(plan.s_m, plan.power_w, plan.v_mps, plan.n_m)
+
+    @classmethod
+    def of_advice(cls, advice: Advice) -> _Reference:
+        return cls(advice.horizon_s_m, advice.horizon_power_w, advice.horizon_speed_mps,
+                   advice.horizon_n_m)
+
+    def at(self, s: float, power_ahead_m: float, brake_ahead_m: float
+           ) -> tuple[float, float, float, float]:
+        """Power `power_ahead_m` ahead, min speed over the next `brake_ahead_m`, and
+        n and dn/ds at `s`."""
+        ahead = np.linspace(s, s + brake_ahead_m, 5)
+        return (float(np.interp(s + power_ahead_m, self.s_m, self.power_w)),
+                float(np.interp(ahead, self.s_m, self.v_mps).min()),
+                float(np.interp(s, self.s_m, self.n_m)), float(np.interp(s, self.s_m, self.dn_ds)))
+
+
+def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
+                  scenario: Scenario | str = Scenario.NOMINAL, seed: int = 0,
+                  policy: Policy | str = Policy.REPLANNED,
+                  conditions: Conditions = Conditions(),
+                  engine_settings: EngineSettings = EngineSettings(),
+                  planner: object | None = None,
+                  sensors: SensorSettings = SensorSettings(),
+                  scenario_settings: ScenarioSettings = ScenarioSettings(),
+                  behaviour: RiderBehaviour = RiderBehaviour(),
+                  dt_s: float = 0.1, max_time_s: float | None = None,
+                  t0_s: float = 0.0) -> SimResult:
+    """Ride `course` in closed loop; the planner believes `rider` and `conditions`.
+
+    The truth differs by `scenario`. With `policy=replanned` the sensor samples feed a
+    `PacingEngine` (built on `planner`, a shared `HorizonPlanner`, or its own), whose
+    advice the rider follows from the moment it is published; the other policies follow
+    the full-course `plan` or constant CP and need no engine. The rider's noise and the
+    sensors draw from `seed`, identically for every policy, so policies compare on the
+    same truth.
+
+    Raises:
+        IttError: unknown scenario or policy name.
+    """
+    try:
+        scenario, policy = Scenario(scenario), Policy(policy)
+    except ValueError as err:
+        raise IttError(f"simulate: {err}") from None
+    sc = scenario_settings
+    truth_rider = rider
+    if scenario is Scenario.CP_OVERESTIMATED:
+        truth_rider = dataclasses.replace(rider, critical_power_w=rider.critical_power_w
+                                          * sc.cp_factor)
+    par = ModelParams(truth_rider, conditions).vector()
+    i_wind = PARAMS.index("wind_e")
+    hot_start_m = min(sc.hot_start_m, course.length_m / 3)
+    step = _step_function(behaviour)
+    rng_rider = np.random.default_rng([seed, 1])
+    sens = Sensors(course, sensors, np.random.default_rng([seed, 2]), t0_s)
+    engine = None
+    if policy is Policy.REPLANNED:
+        engine = PacingEngine(course, rider, plan, conditions=conditions,
+                              settings=engine_settings, planner=planner)  # type: ignore[arg-type]
+    plan_ref = _Reference.of_plan(plan)
+    ref = plan_ref
+    advice: list[Advice] = []
+    samples: list[Sample] = []
+    # Start as the plan does (model.md section 5): upright on the centre line, W_n = CP.
+    x = np.zeros(8)
+    x[4] = float(plan.v_mps[0])
+    x[5] = rider.critical_power_w / rider.max_power_w
+    x[7] = 1.0
+    s, t = 0.0, 0.0
+    noise = 0.0
+    a_noise = math.exp(-dt_s / behaviour.power_noise_tau_s)
+    limit = max_time_s if max_time_s is not None else 3.0 * plan.finish_time_s + 600.0
+    rows = []
+    finish = math.nan
+    y = np.zeros(4)
+    while t < limit:
+        p_now = max(float(y[0]), 0.0)
+        for smp in sens.sample(t, s, float(x[0]), float(x[4]), p_now):
+            samples.append(smp)
+            if engine is not None:
+                if isinstance(smp, GpsFix):
+                    engine.on_gps(smp)
+                elif isinstance(smp, WheelSpeed):
+                    engine.on_speed(smp)
+                else:
+                    engine.on_power(smp)
+        if engine is not None:
+            adv = engine.update(t0_s + t)
+            if adv is not None:
+                advice.append(adv)
+                ref = _Reference.of_advice(adv)
+        rows.append((t, s, x[0], x[4], y[0], x[7] * truth_rider.w_prime_j, y[3]))
+        # The rider's target at the current point.
+        follow = plan_ref if (ref is plan_ref or s >= ref.s_m[-1]) else ref
+        if scenario is Scenario.HOT_START and s < hot_start_m:
+            follow = plan_ref
+        # The rider reads the target one lag ahead, so the delivered power is on time.
+        power, v_brake, n_ref, dn_ds = follow.at(s, behaviour.power_lag_s * x[4],
+                                                 behaviour.brake_lookahead_s * x[4])
+        if policy is Policy.EVEN_CP:
+            power = rider.critical_power_w
+        if scenario is Scenario.HOT_START and s < hot_start_m:
+            power *= sc.hot_start_factor
+        noise = a_noise * noise + math.sqrt(1 - a_noise ** 2) * rng_rider.normal(
+            0.0, behaviour.power_noise)
+        w_cmd = (power * (1 + noise) / rider.max_power_w if power >= 0 else
+                 power / (conditions.mu_x * GRAVITY_MPS2 * rider.mass_kg * max(x[4], 1.0)))
+        road = _road(course, s)
+        if scenario is Scenario.HEADWIND and s >= course.length_m / 2:
+            # A head wind follows the road: blowing against the centre-line heading.
+            par = par.copy()
+            par[i_wind] = -sc.headwind_mps * math.cos(road[2])
+            par[i_wind + 1] = -sc.headwind_mps * math.sin(road[2])
+        kappa_ff = float(course.at("kappa_per_m", s + behaviour.steer_preview_s * x[4]))
+        x_next, s_next, y_next = step(x, s, road, par, [n_ref, dn_ds, w_cmd, v_brake, kappa_ff],
+                                      dt_s)
+        x_next = np.asarray(x_next).ravel()
+        s_next = float(s_next)
+        if s_next >= course.length_m:
+            finish = t + dt_s * (course.length_m - s) / max(s_next - s, 1e-9)
+            x, s, t, y = x_next, course.length_m, t + dt_s, np.asarray(y_next).ravel()
+            rows.append((t, s, x[0], x[4], y[0], x[7] * truth_rider.w_prime_j, y[3]))
+            break
+        x, s, t, y = x_next, s_next, t + dt_s, np.asarray(y_next).ravel()
+    arr = np.array(rows)
+    return SimResult(
+        scenario=scenario, policy=policy, t_s=arr[:, 0], s_m=arr[:, 1], n_m=arr[:, 2],
+        v_mps=arr[:, 3], power_w=arr[:, 4], w_prime_j=arr[:, 5], friction_use=arr[:, 6],
+        samples=samples, advice=advice, finish_time_s=finish,
+        solve_times_s=engine.solve_times_s if engine is not None else [],
+        fallbacks=sum(a.fallback for a in advice),
+    )
+
+
+_STEPS: dict[RiderBehaviour, ca.Function] = {}
+
+
+def _step_function(behaviour: RiderBehaviour) -> ca.Function:
+    """The compiled closed-loop step (built once per behaviour)."""
+    if behaviour not in _STEPS:
+        _STEPS[behaviour] = _closed_loop_step(behaviour, substeps=5)
+    return _STEPS[behaviour]
+
+
+def _road(course: Course, s: float) -> list[float]:
+    """The `model.ROAD` vector at `s`: curvature, slope, heading (ds unused in time)."""
+    return [float(course.at("kappa_per_m", s)), float(course.at("beta_rad", s)),
+            float(course.at("theta_rad", s)), 1.0]
+
+
+def compare_policies(course: Course, rider: Rider, plan: Plan, *,
+                     scenario: Scenario | str = Scenario.NOMINAL, seed: int = 0,
+                     conditions: Conditions = Conditions(),
+                     engine_settings: EngineSettings = EngineSettings(),
+                     planner: object | None = None, **kwargs: object) -> dict[str, object]:
+    """The three policies on the same truth, and the figures `itt-planner simulate` prints.
+
+    `kwargs` go to `simulate_ride` (sensors, scenario settings, behaviour, dt_s).
+    Margins are positive when the replanned ride is faster.
+
+    Raises:
+        IttError: unknown scenario.
+    """
+    runs = {policy: simulate_ride(course, rider, plan, scenario=scenario, seed=seed,
+                                  policy=policy, conditions=conditions,
+                                  engine_settings=engine_settings, planner=planner,
+                                  **kwargs)  # type: ignore[arg-type]
+            for policy in Policy}
+    replanned = runs[Policy.REPLANNED]
+    lat = np.array(replanned.solve_times_s) if replanned.solve_times_s else np.zeros(1)
+    t_re = replanned.finish_time_s
+    return {
+        "course": course.name, "rider": rider.name, "scenario": Scenario(scenario).value,
+        "seed": seed,
+        "plan_finish_time_s": round(plan.finish_time_s, 3),
+        **{p.value: runs[p].summary() for p in Policy},
+        "margins": {
+            "replanned_vs_open_loop_s": round(runs[Policy.OPEN_LOOP].finish_time_s - t_re, 3),
+            "replanned_vs_even_cp_s": round(runs[Policy.EVEN_CP].finish_time_s - t_re, 3),
+            "replanned_vs_plan_pct": round(100 * (t_re / plan.finish_time_s - 1), 3),
+        },
+        "replan_latency_s": {"median": round(float(np.median(lat)), 4),
+                             "p95": round(float(np.percentile(lat, 95)), 4),
+                             "max": round(float(lat.max()), 4)},
+        "replans": len(replanned.solve_times_s),
+    }

@@ -18,3 +18,4 @@ from itt_planner.cli import report as _report  # noqa: F401,E402
 def main() -> None:
     """Console-script entry point."""
     app()
+from itt_planner.cli import simulate as _simulate  # noqa: F401,E402

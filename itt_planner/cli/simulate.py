@@ -1,0 +1,63 @@
+"""`itt-planner simulate`: a closed-loop virtual race, replanned vs open loop vs even CP."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit
+
+
+def _human(r: dict[str, Any]) -> str:
+    lines = [f"{r['course']} / {r['rider']} / {r['scenario']} (seed {r['seed']}): "
+             f"full-course optimum {r['plan_finish_time_s']:.1f} s"]
+    for policy in ("replanned", "open_loop", "even_cp"):
+        p = r[policy]
+        lines.append(f"  {policy:10s} finish {p['finish_time_s']:8.1f} s   W' min "
+                     f"{p['w_prime_min_j'] / 1000:5.1f} kJ   W' end {p['w_prime_end_j'] / 1000:5.1f} kJ")
+    m, lat = r["margins"], r["replan_latency_s"]
+    lines.append(f"  replanned is {m['replanned_vs_open_loop_s']:+.1f} s vs open loop, "
+                 f"{m['replanned_vs_even_cp_s']:+.1f} s vs even CP, "
+                 f"{m['replanned_vs_plan_pct']:+.2f} % vs the optimum")
+    lines.append(f"  replan latency median {lat['median'] * 1000:.0f} ms, p95 "
+                 f"{lat['p95'] * 1000:.0f} ms, max {lat['max'] * 1000:.0f} ms "
+                 f"({r['replans']} replans)")
+    return "\n".join(lines)
+
+
+@app.command("simulate")
+def simulate_cli(
+    course: str = typer.Option(..., "--course", help="GPS track, saved course, or demo name."),
+    rider: str = typer.Option("paper", "--rider", help="Rider preset or YAML file."),
+    scenario: str = typer.Option(
+        "nominal", "--scenario",
+        help="nominal | cp-overestimated | headwind | hot-start"),
+    seed: int = typer.Option(0, "--seed", help="Seed of the rider's and sensors' noise."),
+    horizon_m: float = typer.Option(1000.0, "--horizon-m", help="Receding horizon (m)."),
+    replan_period_s: float = typer.Option(1.0, "--replan-period-s", help="Replan period (s)."),
+    cache_dir: Path = typer.Option(Path(".itt_cache"), "--cache-dir",
+                                   help="Where full-course plans are cached."),
+    as_json: bool = JSON_OPTION,
+) -> None:
+    """Ride a course in closed loop (3D model in time, noisy sensors, the pacing engine)
+    and compare with following the full-course plan blindly and with even CP pacing."""
+    from itt_planner.conditions import Conditions  # noqa: PLC0415
+    from itt_planner.course_loader import load_course  # noqa: PLC0415
+    from itt_planner.engine import EngineSettings  # noqa: PLC0415
+    from itt_planner.ocp import OcpSettings  # noqa: PLC0415
+    from itt_planner.plan_cache import load_or_solve  # noqa: PLC0415
+    from itt_planner.rider import load_rider  # noqa: PLC0415
+    from itt_planner.simulate import compare_policies  # noqa: PLC0415
+
+    with errors_to_exit(as_json):
+        built = load_course(course)
+        who = load_rider(rider)
+        conditions = Conditions()
+        plan = load_or_solve(built, who, conditions, OcpSettings(), "3d", cache_dir=cache_dir)
+        result = compare_policies(
+            built, who, plan, scenario=scenario, seed=seed, conditions=conditions,
+            engine_settings=EngineSettings(replan_period_s=replan_period_s,
+                                           horizon_m=horizon_m))
+        emit(result, as_json, _human)

@@ -1,0 +1,355 @@
+"""The pacing engine: stamped inputs in, `Advice` out at the replan rate.
+
+`PacingEngine` owns a `StateEstimator` and a receding-horizon planner
+(`horizon.HorizonPlanner`). Inputs (`on_gps`, `on_speed`, `on_power`) may arrive on any
+thread; `update(stamp_s)` replans when `replan_period_s` of STAMP time has passed since
+the last advice. The engine is clocked only by message stamps, so a replay is
+deterministic; the wall clock is read only to measure solve time.
+
+Determinism: IPOPT's iterates do not depend on the wall clock, but the measured solve
+time and an overrun check against it do. With `EngineSettings.deterministic` the advice
+carries `solve_time_s = 0.0`, overruns are not declared (the planner's own iteration
+cap is the budget) and diagnostics omit wall times, so two replays of one log give
+byte-identical advice and diagnostics. The measured times are still collected in
+`PacingEngine.solve_times_s` (never published) for benchmarks.
+
+A failed, raising or overrunning solve never reaches the rider: the last good advice,
+shifted to the current `s`, stays in force with `fallback=True` (before any good solve,
+the full-course plan over the horizon serves), and a diagnostic says so.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from itt_planner.advice import Advice, Diagnostic, Level
+from itt_planner.conditions import Conditions
+from itt_planner.course import Course
+from itt_planner.estimate import EstimatorSettings, StateEstimator
+from itt_planner.plan import Plan
+from itt_planner.rider import Rider
+from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.state import RiderState
+
+if TYPE_CHECKING:
+    from itt_planner.horizon import HorizonPlanner, HorizonSolution
+
+log = logging.getLogger(__name__)
+
+#: Closer than this to the finish there is nothing left to plan.
+_FINISHED_M = 5.0
+
+
+@dataclass(frozen=True)
+class EngineSettings:
+    """Rates, budgets and freshness limits of the engine.
+
+    Attributes:
+        replan_period_s: stamp time between two advices.
+        horizon_m: length of the receding horizon (used when the engine builds its
+            planner; a planner passed in keeps its own).
+        max_solve_time_s: a solve taking longer is an overrun: its result is dropped
+            and the last good advice stays (ignored when `deterministic`).
+        stale_after_s: an input topic silent for longer is reported STALE.
+        failures_for_error: consecutive failed solves that turn the solver
+            diagnostic from WARN to ERROR.
+        deterministic: publish `solve_time_s = 0.0` and never judge overruns by the
+            wall clock, for byte-identical replays (module docstring).
+        estimator: settings of the state estimator.
+    """
+
+    replan_period_s: float = 1.0
+    horizon_m: float = 1000.0
+    max_solve_time_s: float = 1.0
+    stale_after_s: float = 3.0
+    failures_for_error: int = 3
+    deterministic: bool = False
+    estimator: EstimatorSettings = field(default_factory=EstimatorSettings)
+
+
+@dataclass(frozen=True)
+class _Good:
+    """The last successful solve: what a fallback shifts forward."""
+
+    state: RiderState
+    s_m: np.ndarray
+    t_s: np.ndarray
+    power_w: np.ndarray
+    v_mps: np.ndarray
+    n_m: np.ndarray
+    w_prime_j: np.ndarray
+    predicted_finish_s: float
+    w_prime_finish_j: float
+
+
+class PacingEngine:
+    """Inputs in, advice out (see the module docstring).
+
+    Args:
+        course, rider, plan: the course, the rider the planner believes in, and the
+            full-course plan (terminal treatment of the horizon, first fallback).
+        conditions: road grip and wind the planner assumes.
+        settings: engine settings.
+        planner: a prebuilt `HorizonPlanner` (building one compiles CasADi Functions;
+            share it between engines on one course); built here when None.
+    """
+
+    def __init__(self, course: Course, rider: Rider, plan: Plan, *,
+                 conditions: Conditions = Conditions(),
+                 settings: EngineSettings = EngineSettings(),
+                 planner: HorizonPlanner | None = None) -> None:
+        if planner is None:
+            from itt_planner.horizon import HorizonPlanner, HorizonSettings
+
+            planner = HorizonPlanner(course, rider, plan, conditions=conditions,
+                                     settings=HorizonSettings(horizon_m=settings.horizon_m))
+        self.course = course
+        self.rider = rider
+        self.plan = plan
+        self.settings = settings
+        self.planner = planner
+        self._estimator = StateEstimator(course, rider, settings.estimator)
+        self._lock = threading.Lock()  # estimator + bookkeeping
+        self._solve_lock = threading.Lock()  # one solve at a time
+        self._last_advice_stamp: float | None = None
+        self._last_good: _Good | None = None
+        self._last_status = "none"
+        self._last_iterations = 0
+        self._last_solve_time = 0.0
+        self._consecutive_failures = 0
+        self._stats: Counter[str] = Counter()
+        self._reported_rejects: dict[str, int] = {}
+        self._last_input: dict[str, float] = {}
+        #: Measured wall-clock solve times (s), for benchmarks; never published.
+        self.solve_times_s: list[float] = []
+
+    # ---- inputs (any thread; never raise) -----------------------------------------------------
+    def on_gps(self, fix: GpsFix) -> None:
+        self._input("gps", fix, self._estimator.on_gps)
+
+    def on_speed(self, sample: WheelSpeed) -> None:
+        self._input("speed", sample, self._estimator.on_speed)
+
+    def on_power(self, sample: PowerReading) -> None:
+        self._input("power", sample, self._estimator.on_power)
+
+    def _input(self, topic: str, sample: Any, handler: Any) -> None:
+        with self._lock:
+            try:
+                accepted = handler(sample)
+            except Exception:  # a live path never dies on one message
+                log.exception("engine: %s sample %s crashed the estimator", topic, sample)
+                self._estimator.counters[f"{topic}_exception"] += 1
+                return
+            if accepted:
+                self._last_input[topic] = sample.stamp_s
+
+    # ---- queries --------------------------------------------------------------------------
+    @property
+    def state(self) -> RiderState | None:
+        """The state at the last input's stamp (None before the first GPS fix)."""
+        with self._lock:
+            if not self._last_input:
+                return None
+            return self._estimator.state(max(self._last_input.values()))
+
+    @property
+    def counters(self) -> dict[str, int]:
+        """Estimator rejections and engine events (solves, failures, fallbacks)."""
+        with self._lock:
+            return {**self._estimator.counters, **self._stats}
+
+    # ---- the replan ---------------------------------------------------------------------------
+    def update(self, stamp_s: float) -> Advice | None:
+        """Replan if `replan_period_s` of stamp time has passed since the last advice.
+
+        Returns None when no advice is due or before the first usable state.
+        """
+        with self._lock:
+            last = self._last_advice_stamp
+            if last is not None and stamp_s - last < self.settings.replan_period_s - 1e-9:
+                return None
+            state = self._estimator.state(stamp_s)
+            if state is None:
+                return None
+            self._last_advice_stamp = stamp_s
+        with self._solve_lock:  # the inputs stay unlocked while solving
+            return self._replan(stamp_s, state)
+
+    def _replan(self, stamp_s: float, state: RiderState) -> Advice:
+        if self.course.length_m - state.s_m <= _FINISHED_M:
+            return self._finished(stamp_s, state)
+        t0 = time.perf_counter()
+        try:
+            sol: HorizonSolution | None = self.planner.solve(state)
+            error = ""
+        except Exception as err:  # the planner must never take the engine down
+            log.exception("engine: horizon solve raised at s=%.0f m", state.s_m)
+            sol, error = None, f"{type(err).__name__}: {err}"
+        elapsed = time.perf_counter() - t0
+        self.solve_times_s.append(elapsed)
+        self._stats["solves"] += 1
+        self._last_solve_time = 0.0 if self.settings.deterministic else elapsed
+        self._last_status = sol.status if sol is not None else "exception"
+        self._last_iterations = sol.iterations if sol is not None else 0
+        overrun = (not self.settings.deterministic
+                   and elapsed > self.settings.max_solve_time_s)
+        if sol is not None and sol.success and not overrun:
+            self._consecutive_failures = 0
+            good = _Good(state, sol.s_m, sol.t_s, sol.power_w, sol.v_mps, sol.n_m,
+                         sol.w_prime_j, sol.predicted_finish_s, sol.w_prime_finish_j)
+            with self._lock:
+                self._last_good = good
+            return self._advice(stamp_s, state, good, fallback=False)
+        self._consecutive_failures += 1
+        if overrun:
+            self._stats["overruns"] += 1
+            self._last_status = f"overrun ({self._last_status})"
+        elif sol is None:
+            self._stats["exceptions"] += 1
+            self._last_status = f"exception ({error})"
+        else:
+            self._stats["failures"] += 1
+        self._stats["fallbacks"] += 1
+        log.warning("engine: replan at s=%.0f m failed (%s); last good advice stays",
+                    state.s_m, self._last_status)
+        with self._lock:
+            good = self._last_good
+        if good is None or good.s_m[-1] <= state.s_m + 1.0:
+            good = self._from_plan(state)
+        return self._advice(stamp_s, state, good, fallback=True)
+
+    def _from_plan(self, state: RiderState) -> _Good:
+        """The full-course plan over the horizon: the fallback before any good solve."""
+        p = self.plan
+        end = min(state.s_m + self.settings.horizon_m, self.course.length_m)
+        inside = (p.s_m > state.s_m) & (p.s_m < end)
+        s = np.concatenate([[state.s_m], p.s_m[inside], [end]])
+        t_plan = p.at("t_s", s)
+        w_plan = p.at("w_prime_j", s)
+        w_end = state.w_prime_j + float(p.w_prime_j[-1] - w_plan[0])
+        return _Good(
+            state=state, s_m=s, t_s=t_plan - t_plan[0], power_w=p.at("power_w", s),
+            v_mps=p.at("v_mps", s), n_m=p.at("n_m", s),
+            w_prime_j=state.w_prime_j + (w_plan - w_plan[0]),
+            predicted_finish_s=state.elapsed_s + p.finish_time_s - float(t_plan[0]),
+            w_prime_finish_j=min(w_end, self.rider.w_prime_j),
+        )
+
+    def _advice(self, stamp_s: float, state: RiderState, good: _Good, *,
+                fallback: bool) -> Advice:
+        """Advice from a solution, cut to start at the rider's current `s` (a fallback
+        is the old solution shifted forward; its finish prediction keeps the time the
+        rider lost or gained against it since)."""
+        keep = good.s_m > state.s_m
+        s = np.concatenate([[state.s_m], good.s_m[keep]])
+
+        def cut(a: np.ndarray) -> np.ndarray:
+            return np.concatenate([[np.interp(state.s_m, good.s_m, a)], a[keep]])
+
+        t_then = float(np.interp(state.s_m, good.s_m, good.t_s))
+        late = (state.elapsed_s - good.state.elapsed_s) - t_then
+        power = cut(good.power_w)
+        x, y, z = self.course.enu_at(s, cut(good.n_m))
+        lat, lon, _ = self.course.to_geodetic(x, y, z)
+        return Advice(
+            stamp_s=stamp_s, state=state, target_power_w=float(power[0]),
+            horizon_s_m=s, horizon_power_w=power, horizon_speed_mps=cut(good.v_mps),
+            horizon_n_m=cut(good.n_m), line_x_m=np.asarray(x), line_y_m=np.asarray(y),
+            line_z_m=np.asarray(z), line_lat_deg=np.asarray(lat), line_lon_deg=np.asarray(lon),
+            predicted_finish_s=good.predicted_finish_s + late,
+            w_prime_now_j=state.w_prime_j,
+            w_prime_finish_j=good.w_prime_finish_j + (state.w_prime_j - float(
+                np.interp(state.s_m, good.s_m, good.w_prime_j))),
+            solver_status=self._last_status, iterations=self._last_iterations,
+            solve_time_s=self._last_solve_time, fallback=fallback,
+        )
+
+    def _finished(self, stamp_s: float, state: RiderState) -> Advice:
+        """Past the finish line: nothing to plan; the advice says so."""
+        self._last_status = "finished"
+        self._last_iterations = 0
+        self._last_solve_time = 0.0
+        s = np.array([state.s_m])
+        x, y, z = self.course.enu_at(s, np.array([state.n_m]))
+        lat, lon, _ = self.course.to_geodetic(x, y, z)
+        return Advice(
+            stamp_s=stamp_s, state=state, target_power_w=0.0, horizon_s_m=s,
+            horizon_power_w=np.zeros(1), horizon_speed_mps=np.array([state.speed_mps]),
+            horizon_n_m=np.array([state.n_m]), line_x_m=np.asarray(x), line_y_m=np.asarray(y),
+            line_z_m=np.asarray(z), line_lat_deg=np.asarray(lat), line_lon_deg=np.asarray(lon),
+            predicted_finish_s=state.elapsed_s, w_prime_now_j=state.w_prime_j,
+            w_prime_finish_j=state.w_prime_j, solver_status="finished", iterations=0,
+            solve_time_s=0.0,
+        )
+
+    # ---- diagnostics and persistence ------------------------------------------------------------
+    def diagnostics(self, stamp_s: float) -> list[Diagnostic]:
+        """Solver health, input freshness per topic, rejected inputs, fallbacks."""
+        st = self.settings
+        with self._lock:
+            counters = dict(self._estimator.counters)
+            last_input = dict(self._last_input)
+            stats = dict(self._stats)
+        out = []
+        failures = self._consecutive_failures
+        if stats.get("solves", 0) == 0:
+            level, msg = Level.OK, "no solve yet"
+        elif failures == 0:
+            level, msg = Level.OK, f"solved ({self._last_status})"
+        else:
+            level = Level.ERROR if failures >= st.failures_for_error else Level.WARN
+            msg = f"{failures} failed solve(s) in a row ({self._last_status}): last good advice in force"
+        values = {"status": self._last_status, "iterations": str(self._last_iterations),
+                  "consecutive_failures": str(failures),
+                  **{k: str(stats.get(k, 0)) for k in
+                     ("solves", "failures", "overruns", "exceptions", "fallbacks")}}
+        if not st.deterministic:
+            values["solve_time_s"] = f"{self._last_solve_time:.4f}"
+        out.append(Diagnostic(stamp_s, "itt_planner/solver", level, msg, values))
+        for topic in ("gps", "speed", "power"):
+            seen = last_input.get(topic)
+            if seen is None:
+                out.append(Diagnostic(stamp_s, f"itt_planner/input/{topic}", Level.STALE,
+                                      "no valid sample yet", {}))
+                continue
+            age = stamp_s - seen
+            stale = age > st.stale_after_s
+            out.append(Diagnostic(
+                stamp_s, f"itt_planner/input/{topic}", Level.STALE if stale else Level.OK,
+                f"stale: last valid sample {age:.1f} s ago" if stale else "fresh",
+                {"age_s": f"{age:.3f}"}))
+        rejects = {k: v for k, v in counters.items() if not k.endswith("_accepted")}
+        new = {k: v - self._reported_rejects.get(k, 0) for k, v in rejects.items()
+               if v > self._reported_rejects.get(k, 0)}
+        self._reported_rejects = rejects
+        out.append(Diagnostic(
+            stamp_s, "itt_planner/inputs_rejected", Level.WARN if new else Level.OK,
+            ("rejected since last report: " + ", ".join(f"{k}={v}" for k, v in sorted(new.items())))
+            if new else "no rejected input since last report",
+            {k: str(v) for k, v in sorted(rejects.items())}))
+        return out
+
+    def snapshot(self) -> dict[str, Any]:
+        """W' balance, progress and the replan clock, JSON-serialisable."""
+        with self._lock:
+            return {"estimator": self._estimator.snapshot(),
+                    "last_advice_stamp_s": self._last_advice_stamp}
+
+    def restore(self, snap: dict[str, Any]) -> None:
+        """Resume after a node restart from `snapshot()`.
+
+        Raises:
+            KeyError: a field of the snapshot is missing.
+        """
+        with self._lock:
+            self._estimator.restore(snap["estimator"])
+            self._last_advice_stamp = snap["last_advice_stamp_s"]
+
