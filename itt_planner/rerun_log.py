@@ -52,7 +52,12 @@ import rerun as rr
 from itt_planner.advice import Advice, Diagnostic, Level
 from itt_planner.course import Course
 from itt_planner.plan import Plan
-from itt_planner.rerun_blueprint import DISTANCE_TIMELINE, RIDE_TIMELINE
+from itt_planner.rerun_blueprint import (
+    DISTANCE_TIMELINE,
+    RIDE_TIMELINE,
+    default_blueprint,
+    fit_map_zoom,
+)
 from itt_planner.rider import Rider
 from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.state import RiderState
@@ -153,6 +158,8 @@ class RideRecorder:
     def __init__(self, rec: rr.RecordingStream, course: Course, rider: Rider,
                  plan: Plan | None) -> None:
         self.rec = rec
+        # A disabled recording (the `none` sink) costs nothing: no archetypes are built.
+        self.enabled = rec.is_enabled()
         self.course = course
         self.rider = rider
         self.plan = plan
@@ -193,12 +200,18 @@ class RideRecorder:
     # ---- static -------------------------------------------------------------------------
     def log_course(self) -> None:
         """Log what does not change during the ride: course, road, plan, series styles."""
+        if not self.enabled:
+            return
         with self._lock:
             self._log_course()
 
     def _log_course(self) -> None:
         rec, course = self.rec, self.course
         rec.send_recording_name(f"{course.name} / {self.rider.name}")
+        # The default layout again, with the map zoomed to fit this course.
+        extent = max(np.ptp(course.x_m), np.ptp(course.y_m))
+        rec.send_blueprint(default_blueprint(map_zoom=fit_map_zoom(course.origin.lat_deg,
+                                                                   float(extent))))
         idx = _thin(np.arange(len(course.s_m)), MAX_STATIC_POINTS)
         s = course.s_m[idx]
         rec.log("map/course", rr.GeoLineStrings(
@@ -274,6 +287,8 @@ class RideRecorder:
 
     def log_gps(self, fix: GpsFix, state: RiderState | None = None) -> None:
         """A raw GPS fix on the map; `state` (the estimate after it) places it on distance_m."""
+        if not self.enabled:
+            return
         with self._lock:
             if state is not None and math.isfinite(state.s_m):
                 self._s_m = state.s_m
@@ -289,6 +304,8 @@ class RideRecorder:
 
     def log_speed(self, sample: WheelSpeed) -> None:
         """Wheel speed (actual), in km/h."""
+        if not self.enabled:
+            return
         with self._lock:
             if self._bad_input(sample.stamp_s, "wheel speed", sample.speed_mps):
                 return
@@ -296,6 +313,8 @@ class RideRecorder:
 
     def log_power(self, sample: PowerReading) -> None:
         """Pedal power (actual), in W."""
+        if not self.enabled:
+            return
         with self._lock:
             if self._bad_input(sample.stamp_s, "power", sample.power_w):
                 return
@@ -304,6 +323,8 @@ class RideRecorder:
     # ---- estimate and advice -----------------------------------------------------------
     def log_state(self, state: RiderState) -> None:
         """The rider's estimated position, W' balance and the plan at that position."""
+        if not self.enabled:
+            return
         with self._lock:
             if not math.isfinite(state.s_m):
                 self.skipped_inputs += 1
@@ -334,6 +355,8 @@ class RideRecorder:
 
     def log_advice(self, advice: Advice) -> None:
         """Target power, projections, solve time and the horizon line of one advice."""
+        if not self.enabled:
+            return
         with self._lock:
             s = advice.state.s_m
             self._s_m = s if math.isfinite(s) else self._s_m
@@ -388,6 +411,8 @@ class RideRecorder:
 
     def log_diagnostics(self, diags: list[Diagnostic]) -> None:
         """Diagnostics whose level or message changed since the last call (no 1 Hz spam)."""
+        if not self.enabled:
+            return
         with self._lock:
             for diag in diags:
                 key = (diag.level, diag.message)

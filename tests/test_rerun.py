@@ -101,7 +101,8 @@ def test_file_has_recording_and_blueprint(ride: dict) -> None:
     [recording] = reader.recordings()
     assert recording.application_id == "itt_planner"
     assert recording.recording_id == "test-ride"
-    assert len(reader.blueprints()) == 1
+    # open_recording's default layout, and log_course's with the map zoomed to the course.
+    assert len(reader.blueprints()) == 2
 
 
 def test_actual_power_and_speed_equal_the_samples(ride: dict) -> None:

@@ -1,7 +1,8 @@
 """Serve a ride recording to Rerun's web viewer and screenshot it with headless Chromium.
 
 Marked `screenshot` (excluded by default): it installs Debian's `chromium` if missing and
-takes ~40 s. All traffic stays on loopback: Chromium's resolver maps every other host to
+takes ~70 s
+(ITT_SCREENSHOT_WAIT_S, default 60: the software-rendered viewer ingests ~4 MB slowly). All traffic stays on loopback: Chromium's resolver maps every other host to
 NOTFOUND (so the map view draws without tiles). Set ITT_SCREENSHOT_OUT=path.png to keep
 the image (bench/rerun_viewer.png in the README comes from here).
 """
@@ -21,16 +22,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
-from synthetic_ride import RIDER, make_course, make_plan, make_ride
+from synthetic_ride import RIDER, make_plan, make_ride
 from test_rerun import record
 
+from itt_planner.course_loader import load_course
 from itt_planner.rerun_log import RideRecorder
 from itt_planner.rerun_sink import RerunSink, open_recording
 
 pytestmark = pytest.mark.screenshot
 
 #: Real seconds the page's load event is held back while the wasm viewer starts and draws.
-VIEWER_LOAD_S = 30.0
+VIEWER_LOAD_S = float(os.environ.get("ITT_SCREENSHOT_WAIT_S", "60"))
 WINDOW = (1600, 1000)
 ORANGE = np.array([255, 140, 0])
 
@@ -86,11 +88,12 @@ def _wrapper_server(viewer_url: str, delay_s: float) -> http.server.ThreadingHTT
 def served_ride() -> Iterator[RerunSink]:
     sink = RerunSink(kind="serve", web_port=_free_port(), grpc_port=_free_port())
     rec = open_recording(sink)
-    course = make_course()
+    # The demo course: ~21 min of synthetic ride (plan and samples from synthetic_ride).
+    course = load_course("verona-like")
     plan = make_plan(course)
     recorder = RideRecorder(rec, course, RIDER, plan)
     recorder.log_course()
-    record(recorder, make_ride(course, plan))
+    record(recorder, make_ride(course, plan, rate_hz=2.0))
     rec.flush()
     yield sink
     rec.disconnect()
