@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -100,7 +101,8 @@ class Context:
         with self._lock:
             if self._ok:
                 raise RuntimeError("rclpy.init() called twice without shutdown()")
-            self.ros_args = parse_ros_args(args)
+            # As rclpy: without explicit args, the process's command line is parsed.
+            self.ros_args = parse_ros_args(sys.argv if args is None else args)
             self.domain_id = (domain_id if domain_id is not None
                               else int(os.environ.get(DOMAIN_ENV, "0") or 0))
             use_shipped_config_by_default()

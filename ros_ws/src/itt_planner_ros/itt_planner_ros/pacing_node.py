@@ -110,7 +110,8 @@ class NodeParams:
     Attributes:
         course: course spec for `load_course` (demo name, GPS file, `.course.npz`).
         rider: rider preset name or YAML file.
-        plan_cache: directory of cached full-course plans.
+        plan: a saved full-course plan (`Plan.save`); "" to take it from `plan_cache`.
+        plan_cache: directory of cached full-course plans (solved there when missing).
         horizon_m: receding-horizon length.
         replan_period_s: stamp time between two advices.
         tick_period_s: period of the replan timer (node clock); the engine decides
@@ -125,6 +126,7 @@ class NodeParams:
 
     course: str = "verona-like"
     rider: str = "paper"
+    plan: str = ""
     plan_cache: str = ".itt_cache"
     horizon_m: float = 1000.0
     replan_period_s: float = 1.0
@@ -137,7 +139,7 @@ class NodeParams:
 
 
 def build_engine(params: NodeParams) -> Any:
-    """The pacing engine of the node's course and rider (plan from the cache).
+    """The pacing engine of the node's course, rider and full-course plan.
 
     Raises:
         IttError: the course, rider or plan cannot be had.
@@ -145,15 +147,20 @@ def build_engine(params: NodeParams) -> Any:
     from itt_planner.conditions import Conditions
     from itt_planner.course_loader import load_course
     from itt_planner.engine import EngineSettings, PacingEngine
-    from itt_planner.ocp import OcpSettings
-    from itt_planner.plan_cache import load_or_solve
+    from itt_planner.plan import Plan
     from itt_planner.rider import load_rider
 
     course = load_course(params.course)
     rider = load_rider(params.rider)
     conditions = Conditions()
-    plan = load_or_solve(course, rider, conditions, OcpSettings(), "3d",
-                         cache_dir=Path(params.plan_cache))
+    if params.plan:
+        plan = Plan.load(params.plan)
+    else:
+        from itt_planner.ocp import OcpSettings
+        from itt_planner.plan_cache import load_or_solve
+
+        plan = load_or_solve(course, rider, conditions, OcpSettings(), "3d",
+                             cache_dir=Path(params.plan_cache))
     settings = EngineSettings(replan_period_s=params.replan_period_s,
                               horizon_m=params.horizon_m)
     return PacingEngine(course, rider, plan, conditions=conditions, settings=settings)
@@ -380,9 +387,13 @@ class PacingNode(Node):
                 self._log_writer.close()
 
 
-def main(args: list[str] | None = None, *, namespace: str | None = None,
-         parameter_overrides: list[Any] | None = None) -> None:
-    """Run the node until Ctrl-C / SIGTERM (`ros2 run itt_planner_ros pacing_node`)."""
+def run(args: list[str] | None = None, *, namespace: str | None = None,
+        parameter_overrides: list[Any] | None = None) -> dict[str, Any]:
+    """Run the node until Ctrl-C / SIGTERM; returns what it did (advice, malformed).
+
+    Raises:
+        IttError: the course, rider or plan cannot be had.
+    """
     rclpy.init(args=args)
     node = None
     try:
@@ -401,6 +412,15 @@ def main(args: list[str] | None = None, *, namespace: str | None = None,
             node.close()
             node.destroy_node()
         rclpy.try_shutdown()
+    if node is None:
+        return {}
+    return {"runtime": RUNTIME, "namespace": node.get_namespace(),
+            "advice_published": node.advice_count, "malformed": dict(node.malformed)}
+
+
+def main(args: list[str] | None = None) -> None:
+    """Console script (`ros2 run itt_planner_ros pacing_node`)."""
+    run(args)
 
 
 if __name__ == "__main__":
