@@ -70,7 +70,9 @@ class OcpSettings:
     """
 
     h_min_m: float = 1.0
-    h_max_m: float = 10.0
+    # Longer intervals make each shooting interval span up to ~1 s of the unstable roll
+    # mode at climbing speeds; IPOPT then needed 1e14 regularisation and did not converge.
+    h_max_m: float = 4.0
     uniform_m: float | None = None
     margin_m: float = 0.5
     start_speed_mps: float = 1.0
@@ -102,7 +104,7 @@ def _solver(kind: str, wprime_model: WPrimeModel, n_intervals: int, substeps: in
     tr = transcribe(_model(kind, wprime_model), n_intervals, substeps=substeps, compile_c=jit)
     opts = {**tr.derivatives,
         "ipopt.max_iter": max_iter, "ipopt.max_cpu_time": max_cpu_time_s, "ipopt.tol": tol,
-        "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
+        "ipopt.print_level": int(__import__("os").environ.get("IPOPT_PRINT", "0")), "print_time": False, "ipopt.sb": "yes",
         "ipopt.mu_strategy": "adaptive", "ipopt.linear_solver": "mumps",
         "error_on_fail": False,
         # Derivatives come from the compiled stage kernels (transcription docstring); the
