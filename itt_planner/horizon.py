@@ -52,6 +52,12 @@ from itt_planner.transcription import transcribe
 
 log = logging.getLogger(__name__)
 
+#: The start point (plan or shifted previous solution) is close to the optimum: begin
+#: with a small barrier parameter and keep the start inside the bounds it already
+#: satisfies, instead of IPOPT's defaults for a cold start far away.
+_WARM_IPOPT = {"mu_init": 1e-3, "warm_start_init_point": "yes", "warm_start_bound_push": 1e-6,
+               "warm_start_mult_bound_push": 1e-6, "mu_strategy": "monotone"}
+
 
 @dataclass(frozen=True)
 class HorizonSettings:
@@ -127,8 +133,9 @@ class HorizonPlanner:
                 "ipopt.max_iter": settings.max_iter, "ipopt.max_wall_time": settings.max_wall_time_s,
                 "ipopt.tol": settings.tol, "ipopt.acceptable_tol": 10 * settings.tol,
                 "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
-                "ipopt.mu_strategy": "adaptive", "ipopt.linear_solver": "mumps",
-                "error_on_fail": False, "no_nlp_grad": True, "calc_lam_p": False}
+                "ipopt.linear_solver": "mumps",
+                "error_on_fail": False, "no_nlp_grad": True, "calc_lam_p": False,
+                **{f"ipopt.{k}": v for k, v in _WARM_IPOPT.items()}}
         self._solver = ca.nlpsol("horizon", "ipopt", self._tr.nlp, opts)
         self._par = ModelParams(rider, conditions).vector()
         # Cumulative node density along the course: equal steps of it give the window mesh.
