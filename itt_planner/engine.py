@@ -156,9 +156,9 @@ class PacingEngine:
     def state(self) -> RiderState | None:
         """The state at the last input's stamp (None before the first GPS fix)."""
         with self._lock:
-            if not self._last_input:
-                return None
-            return self._estimator.state(max(self._last_input.values()))
+            stamps = [*self._last_input.values(), self._estimator.stamp_s]
+            known = [s for s in stamps if s is not None]
+            return self._estimator.state(max(known)) if known else None
 
     @property
     def counters(self) -> dict[str, int]:
@@ -260,7 +260,10 @@ class PacingEngine:
         x, y, z = self.course.enu_at(s, cut(good.n_m))
         lat, lon, _ = self.course.to_geodetic(x, y, z)
         return Advice(
-            stamp_s=stamp_s, state=state, target_power_w=float(power[0]),
+            # Node 0 holds the measured power (the OCP's initial state): the target is
+            # what the solution rides from there on, the next node.
+            stamp_s=stamp_s, state=state, target_power_w=float(power[1] if len(power) > 1
+                                                               else power[0]),
             horizon_s_m=s, horizon_power_w=power, horizon_speed_mps=cut(good.v_mps),
             horizon_n_m=cut(good.n_m), line_x_m=np.asarray(x), line_y_m=np.asarray(y),
             line_z_m=np.asarray(z), line_lat_deg=np.asarray(lat), line_lon_deg=np.asarray(lon),

@@ -146,6 +146,11 @@ class StateEstimator:
         return self._t is not None
 
     @property
+    def stamp_s(self) -> float | None:
+        """Filter time: the stamp of the latest sample that moved it (None before)."""
+        return self._t
+
+    @property
     def distance_m(self) -> float:
         """Published cumulative progress (laps included on a closed loop)."""
         return self._s_pub
