@@ -111,8 +111,17 @@ class Proc:
         """Signal the process, wait for it, return its stdout."""
         if self.popen.poll() is None:
             self.popen.send_signal(sig)
-        out, _ = self.popen.communicate(timeout=timeout_s)
-        self._err.close()
+        return self.wait(timeout_s)
+
+    def wait(self, timeout_s: float) -> str:
+        """Wait for the process to end by itself; its stdout."""
+        try:
+            out, _ = self.popen.communicate(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            self.popen.kill()
+            raise AssertionError(f"still running after {timeout_s} s:\n{self.text()}") from None
+        finally:
+            self._err.close()
         return out.decode()
 
     def rss_mb(self) -> float:
@@ -121,3 +130,16 @@ class Proc:
         line = next(f for f in fields if f.startswith("VmRSS:"))
         return int(line.split()[1]) / 1024
 
+
+
+_RIDES: dict[tuple[float, float, float | None], Ride] = {}
+
+
+def cached_ride(folder: Path, *, input_hz: float = 4.0, gps_hz: float = 1.0,
+                duration_s: float | None = None) -> Ride:
+    """`make_ride` once per test process and settings (the plan solve takes ~10 s)."""
+    key = (input_hz, gps_hz, duration_s)
+    if key not in _RIDES:
+        _RIDES[key] = make_ride(folder / f"ride_{input_hz:g}_{gps_hz:g}_{duration_s}",
+                                input_hz=input_hz, gps_hz=gps_hz, duration_s=duration_s)
+    return _RIDES[key]

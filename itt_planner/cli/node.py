@@ -9,8 +9,10 @@ the domain is `ROS_DOMAIN_ID`.
 
 from __future__ import annotations
 
+import logging
 import os
 import signal
+import sys
 import threading
 from pathlib import Path
 from typing import Any
@@ -19,6 +21,12 @@ import typer
 
 from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit
 from itt_planner.errors import IttError
+
+
+def _log_to_stderr() -> None:
+    """Node, player and recorder report on stderr in ROS 2's console format."""
+    logging.basicConfig(level=logging.INFO, stream=sys.stderr,
+                        format="[%(levelname)s] [%(created).3f] [%(name)s]: %(message)s")
 
 
 def _stop_on_signals() -> threading.Event:
@@ -57,6 +65,7 @@ def node_cli(
     with errors_to_exit(as_json):
         if runtime not in ("auto", "rclpy", "dds"):
             raise typer.BadParameter("expected auto, rclpy or dds", param_hint="--runtime")
+        _log_to_stderr()
         os.environ["ITT_RUNTIME"] = runtime  # read when the node module is imported
         from itt_planner_ros import pacing_node
 
@@ -92,6 +101,7 @@ def play_cli(
     with errors_to_exit(as_json):
         from itt_planner.dds.player import Player, PlaySettings
 
+        _log_to_stderr()
         stop = _stop_on_signals()
         settings = PlaySettings(rate=rate, loop=loop, clock_hz=clock_hz if clock else 0.0,
                                 start_offset_s=start_offset_s, topics=tuple(topic),
@@ -117,6 +127,7 @@ def record_cli(
     with errors_to_exit(as_json):
         from itt_planner.dds.recorder import Recorder, RecordSettings
 
+        _log_to_stderr()
         if not topics and not all_topics:
             raise typer.BadParameter("name topics or use -a")
         stop = _stop_on_signals()

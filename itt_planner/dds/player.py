@@ -17,7 +17,7 @@ from pathlib import Path
 
 from cyclonedds.domain import DomainParticipant
 
-from itt_msgs_py import serialize, topics, typestore
+from itt_msgs_py import DEFAULT_NAMESPACE, serialize, topics, typestore
 from itt_planner.dds.endpoints import RawWriter
 from itt_planner.errors import RideLogError
 from itt_planner.ridelog import RawRecord, RideLogReader
@@ -51,7 +51,7 @@ class PlaySettings:
     start_offset_s: float = 0.0
     topics: tuple[str, ...] = ()
     wait_for_matched_s: float = 0.0
-    namespace: str = topics.DEFAULT_NAMESPACE
+    namespace: str = DEFAULT_NAMESPACE
 
 
 @dataclass

@@ -79,11 +79,10 @@ class Recorder:
 
     def _discover(self) -> None:
         for pub in self._discovery.take(N=100):
-            if not hasattr(pub, "topic_name"):  # a disposed endpoint
-                continue
+            if not getattr(pub, "topic_name", None) or not getattr(pub, "type_name", None):
+                continue  # a disposed endpoint, or one without a topic (built-in)
             topic, msgtype = ros_topic_name(pub.topic_name), ros_type_name(pub.type_name)
-            if topic is None or msgtype is None or not self._wanted(topic) or \
-                    topic == CLOCK_TOPIC and self._clock_reader is not None:
+            if topic is None or msgtype is None or not self._wanted(topic):
                 continue
             if msgtype not in typestore.types:
                 log.warning("record: skipping %s of unknown type %s", topic, msgtype)

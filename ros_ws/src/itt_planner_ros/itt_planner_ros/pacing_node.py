@@ -198,11 +198,13 @@ class PacingNode(Node):
         namespace: ROS namespace of the pacing topics (`/itt`).
         parameter_overrides: runtime `Parameter`s that win over YAML and defaults.
         engine: a prebuilt engine; built from the parameters when None.
+        context: the runtime's context (None: the default one).
     """
 
     def __init__(self, *, namespace: str = topics.DEFAULT_NAMESPACE,
-                 parameter_overrides: list[Any] | None = None, engine: Any = None) -> None:
-        super().__init__(NODE_NAME, namespace=namespace,
+                 parameter_overrides: list[Any] | None = None, engine: Any = None,
+                 context: Any = None) -> None:
+        super().__init__(NODE_NAME, namespace=namespace, context=context,
                          parameter_overrides=parameter_overrides or [])
         self.params = self._declare_parameters()
         self.engine = engine if engine is not None else build_engine(self.params)
