@@ -48,6 +48,8 @@ _EPS_WN = 1e-3
 _EPS_AIR = 1e-2
 #: Softplus width of the E9 switch at critical power (W).
 _SHARPNESS_W = 5.0
+#: Speed floor inside divisions (m/s), below the OCP's v_min so never active at a solution.
+_V_GUARD_MPS = 0.2
 #: Width (normalised) of the smooth pedalling gate of C15.
 _EPS_PEDAL = 0.02
 #: C15 switches pedalling off slightly before `pedal_lean` so that the smoothed gate
@@ -121,6 +123,9 @@ def _longitudinal(v: ca.SX, w_n: ca.SX, e_n: ca.SX, psi: ca.SX, beta: ca.SX,
                   q: dict[str, ca.SX], wprime_model: WPrimeModel) -> tuple[ca.SX, ca.SX]:
     """dv/dt (E3) and dE_n/dt (E9), shared by both models."""
     g = GRAVITY_MPS2
+    # Guards for wild trial points only (inside the bounds they are inactive): speed in
+    # divisions, and the E9 softplus argument that would overflow exp() far beyond W_max.
+    v = ca.fmax(v, _V_GUARD_MPS)
     p_plus = q["p_max"] * _smooth_pos(w_n, _EPS_WN)
     p_brake = q["mu_x"] * g * q["mass"] * v * (w_n - _smooth_pos(w_n, _EPS_WN))
     # E3 [fix]: wind projected on the absolute heading psi; tail wind positive.
@@ -129,7 +134,7 @@ def _longitudinal(v: ca.SX, w_n: ca.SX, e_n: ca.SX, psi: ca.SX, beta: ca.SX,
     drag = q["k_v"] * v_air * ca.sqrt(v_air * v_air + _EPS_AIR)
     resist = q["mass"] * g * (q["crr"] * ca.cos(beta) + ca.sin(beta))
     v_dot = (p_plus + p_brake) / (q["mass"] * v) - resist / q["mass"] - drag / q["mass"]
-    e_dot = e_n_rate(e_n, p_plus, q["cp"], q["w_prime"], wprime_model, sharpness_w=_SHARPNESS_W)
+    e_dot = e_n_rate(e_n, ca.fmin(p_plus, 2 * q["p_max"]), q["cp"], q["w_prime"], wprime_model, sharpness_w=_SHARPNESS_W)
     return v_dot, e_dot
 
 
@@ -157,7 +162,7 @@ def build_3d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
     g = GRAVITY_MPS2
 
     delta = delta_n * q["steer_max"]
-    s_dot = v * ca.cos(alpha) / (1 - n * kappa)  # E8
+    s_dot = ca.fmax(v, _V_GUARD_MPS) * ca.cos(alpha) / (1 - n * kappa)  # E8
     yaw_rate = v * ca.tan(delta) / q["wheelbase"]  # E1 [fix]: kinematic bicycle v tan(d)/L
     i_x0 = q["roll_inertia"] + q["com_height"] ** 2 * q["mass"]
     # E5 [fix]: nonlinear inverted pendulum, steady lean tan(phi) = -(v^2 tan(d)/L)/g.
@@ -199,7 +204,7 @@ def build_1d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
     q = _par(p)
     v_dot, e_dot = _longitudinal(v, w_n, e_n, road[2], road[1], q, wprime_model)
     x_dot = ca.vertcat(v_dot, u[0] * q["power_rate_max"] / q["p_max"], e_dot)
-    dt_ds = 1 / v
+    dt_ds = 1 / ca.fmax(v, _V_GUARD_MPS)
     running = dt_ds * (1 + q["w_power"] * u[0] ** 2)
     ode = ca.Function(f"ode1d_{wprime_model.value}", [x, u, road, p], [x_dot * dt_ds, dt_ds, running],
                       ["x", "u", "road", "p"], ["dxds", "dtds", "dJds"])

@@ -100,3 +100,69 @@ class Plan:
             raise IttError(f"{path}: not an itt-planner plan file")
         names = {f.name for f in fields(cls)}
         return cls(**arrays, **{k: v for k, v in header.items() if k in names})
+
+
+@dataclass(frozen=True)
+class CornerRow:
+    """How a plan rides one corner (SI units).
+
+    Attributes:
+        braking_s_m: where braking (W_n < 0) starts before the apex, or None if the
+            rider does not brake for this corner.
+        max_lean_rad: largest |phi| between entry and exit.
+        time_s: time from the corner's entry to its exit.
+    """
+
+    apex_s_m: float
+    min_radius_m: float
+    braking_s_m: float | None
+    entry_speed_mps: float
+    apex_speed_mps: float
+    exit_speed_mps: float
+    max_lean_rad: float
+    time_s: float
+
+
+def corner_table(plan: Plan, corners: tuple[Any, ...], lookback_m: float = 300.0
+                 ) -> list[CornerRow]:
+    """One row per course corner (`course.Corner`): braking point, speeds, lean, time."""
+    rows = []
+    for c in corners:
+        before = (plan.s_m >= c.apex_s_m - lookback_m) & (plan.s_m <= c.apex_s_m)
+        braking = before & (plan.w_n < 0)
+        braking_s = None
+        if np.any(braking):
+            # The start of the last braking run before the apex.
+            idx = np.flatnonzero(braking)
+            gaps = np.flatnonzero(np.diff(idx) > 1)
+            braking_s = float(plan.s_m[idx[gaps[-1] + 1] if len(gaps) else idx[0]])
+        inside = (plan.s_m >= c.entry_s_m) & (plan.s_m <= c.exit_s_m)
+        lean = float(np.max(np.abs(plan.phi_rad[inside]))) if np.any(inside) else float(
+            abs(plan.at("phi_rad", c.apex_s_m)))
+        rows.append(CornerRow(
+            apex_s_m=c.apex_s_m, min_radius_m=c.min_radius_m, braking_s_m=braking_s,
+            entry_speed_mps=float(plan.at("v_mps", c.entry_s_m)),
+            apex_speed_mps=float(plan.at("v_mps", c.apex_s_m)),
+            exit_speed_mps=float(plan.at("v_mps", c.exit_s_m)), max_lean_rad=lean,
+            time_s=float(plan.at("t_s", c.exit_s_m) - plan.at("t_s", c.entry_s_m))))
+    return rows
+
+
+def splits(plan: Plan, every_m: float = 1000.0) -> list[dict[str, float]]:
+    """Split times every `every_m` (and at the finish): elapsed, split, mean speed/power.
+
+    Mean power is time-weighted over the split (the plan's power per interval).
+    """
+    marks = np.append(np.arange(every_m, plan.s_m[-1], every_m), plan.s_m[-1])
+    t_marks = plan.at("t_s", marks)
+    out, s_prev, t_prev = [], float(plan.s_m[0]), 0.0
+    dt = np.diff(plan.t_s)
+    for s, t in zip(marks, t_marks, strict=True):
+        sel = (plan.s_m[:-1] >= s_prev) & (plan.s_m[:-1] < s)
+        energy = float(np.sum(plan.power_w[:-1][sel] * dt[sel]))
+        split = float(t - t_prev)
+        out.append({"s_m": float(s), "elapsed_s": float(t), "split_s": split,
+                    "mean_speed_mps": (float(s) - s_prev) / split if split > 0 else 0.0,
+                    "mean_power_w": energy / float(np.sum(dt[sel])) if np.any(sel) else 0.0})
+        s_prev, t_prev = float(s), float(t)
+    return out

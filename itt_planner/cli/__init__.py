@@ -15,6 +15,7 @@ from itt_planner.cli import ridelog as _ridelog  # noqa: F401,E402
 from itt_planner.cli import report as _report  # noqa: F401,E402
 from itt_planner.cli import simulate as _simulate  # noqa: F401,E402
 from itt_planner.cli import node as _node  # noqa: F401,E402
+from itt_planner.cli import plan as _plan  # noqa: F401,E402
 
 
 def main() -> None:

@@ -1,0 +1,103 @@
+"""`itt-planner plan` and `itt-planner compare-riders`: full-course OCP solves."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit
+
+
+def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
+    """The figures `plan --json` prints (edge units only in the *_kmh / *_deg fields)."""
+    import numpy as np  # noqa: PLC0415
+
+    from itt_planner.plan import corner_table, splits  # noqa: PLC0415
+
+    dt = np.diff(plan.t_s)
+    mean_power = float(np.sum(plan.power_w[:-1] * dt) / max(float(np.sum(dt)), 1e-9))
+    return {
+        "course": course.name, "model": plan.model,
+        "finish_time_s": round(plan.finish_time_s, 2),
+        "mean_speed_kmh": round(3.6 * course.length_m / plan.finish_time_s, 2),
+        "mean_power_w": round(mean_power, 1),
+        "w_prime_end_j": round(float(plan.w_prime_j[-1]), 1),
+        "w_prime_min_j": round(float(plan.w_prime_j.min()), 1),
+        "max_lean_deg": round(math.degrees(float(np.max(np.abs(plan.phi_rad)))), 2),
+        "max_friction_use": round(float(plan.friction_use.max()), 4),
+        "solve_time_s": round(plan.solve_time_s, 3), "iterations": plan.iterations,
+        "n_nodes": plan.n_nodes, "solver_status": plan.solver_status,
+        "success": bool(plan.meta.get("success", False)),
+        "corners": [
+            {"apex_s_m": round(r.apex_s_m, 1), "min_radius_m": round(r.min_radius_m, 1),
+             "braking_s_m": None if r.braking_s_m is None else round(r.braking_s_m, 1),
+             "entry_speed_kmh": round(3.6 * r.entry_speed_mps, 1),
+             "apex_speed_kmh": round(3.6 * r.apex_speed_mps, 1),
+             "exit_speed_kmh": round(3.6 * r.exit_speed_mps, 1),
+             "max_lean_deg": round(math.degrees(r.max_lean_rad), 1), "time_s": round(r.time_s, 2)}
+            for r in corner_table(plan, course.corners)],
+        "splits": [{k: round(v, 2) for k, v in row.items()} for row in splits(plan)],
+    }
+
+
+def _human(r: dict[str, Any]) -> str:
+    lines = [f"{r['course']} ({r['model']}): {r['finish_time_s']:.1f} s, {r['mean_speed_kmh']} km/h, "
+             f"{r['mean_power_w']} W, W' end {r['w_prime_end_j']:.0f} J, max lean "
+             f"{r['max_lean_deg']} deg  [{r['solver_status']}, {r['iterations']} it, "
+             f"{r['n_nodes']} nodes, {r['solve_time_s']} s]"]
+    lines += [f"  corner {c['apex_s_m'] / 1000:6.2f} km R {c['min_radius_m']:5.1f} m: "
+              f"{c['entry_speed_kmh']}/{c['apex_speed_kmh']}/{c['exit_speed_kmh']} km/h, "
+              f"lean {c['max_lean_deg']} deg, {c['time_s']} s" for c in r["corners"]]
+    lines += [f"  {s['s_m'] / 1000:6.2f} km  {s['elapsed_s']:8.1f} s  (+{s['split_s']:.1f} s)"
+              for s in r["splits"]]
+    return "\n".join(lines)
+
+
+@app.command("plan")
+def plan_cli(
+    course: str = typer.Option(..., "--course", help="GPS track, saved course, or demo name."),
+    rider: str = typer.Option("paper", "--rider", help="Rider preset or YAML file."),
+    model: str = typer.Option("3d", "--model", help="3d or 1d."),
+    output: Path | None = typer.Option(None, "--output", "-o", help="Write the .plan.npz here."),
+    mu: float = typer.Option(1.0, "--mu", help="Tyre-road grip (1.0 dry, ~0.6 wet)."),
+    wind_kmh: float = typer.Option(0.0, "--wind-kmh", help="Wind speed (km/h)."),
+    wind_from_deg: float = typer.Option(0.0, "--wind-from-deg",
+                                        help="Direction the wind blows FROM (deg, 0 = North)."),
+    max_time_s: float = typer.Option(120.0, "--max-time-s", help="Solver time cap (s)."),
+    as_json: bool = JSON_OPTION,
+) -> None:
+    """Solve the minimum-time pacing and cornering OCP over a whole course."""
+    from itt_planner.conditions import Conditions  # noqa: PLC0415
+    from itt_planner.course_loader import load_course  # noqa: PLC0415
+    from itt_planner.ocp import OcpSettings, solve_plan  # noqa: PLC0415
+    from itt_planner.rider import load_rider  # noqa: PLC0415
+
+    with errors_to_exit(as_json):
+        built = load_course(course)
+        conditions = Conditions.from_meteo(wind_kmh=wind_kmh, wind_from_deg=wind_from_deg, mu=mu)
+        solved = solve_plan(built, load_rider(rider), conditions,
+                            OcpSettings(max_cpu_time_s=max_time_s), model=model)
+        result = plan_summary(solved, built)
+        if output is not None:
+            result["output"] = str(solved.save(output))
+        emit(result, as_json, _human)
+
+
+@app.command("compare-riders")
+def compare_riders_cli(
+    course: str = typer.Option(..., "--course", help="GPS track, saved course, or demo name."),
+    as_json: bool = JSON_OPTION,
+) -> None:
+    """The three virtual riders x both models: finish, longest descent, sharpest corner."""
+    from itt_planner.course_loader import load_course  # noqa: PLC0415
+    from itt_planner.ocp import compare_riders  # noqa: PLC0415
+
+    with errors_to_exit(as_json):
+        rows = compare_riders(load_course(course))
+        emit({"course": course, "riders": rows}, as_json, lambda r: "\n".join(
+            f"{x['rider']:10s} {x['model']}: {x['finish_time_s']:8.1f} s, descent "
+            f"{x['descent_time_s']:7.1f} s, sharpest corner {x['corner_time_s']:5.2f} s "
+            f"[{x['solver_status']}]" for x in r["riders"]))
