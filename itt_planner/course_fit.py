@@ -179,18 +179,43 @@ def clean_track(rec: Recording, settings: FitSettings = FitSettings()) -> Track:
         ahead /= np.linalg.norm(ahead)
         tail = len(x) - 1 - np.flatnonzero(np.cumsum(step[::-1]) < 3 * settings.closed_loop_gap_m)
         tail = np.concatenate([[len(x) - 1], tail])
-        near = np.hypot(x[tail] - x[0], y[tail] - y[0]) <= settings.closed_loop_gap_m
+        dist = np.hypot(x[tail] - x[0], y[tail] - y[0])
         before = (x[tail] - x[0]) * ahead[0] + (y[tail] - y[0]) * ahead[1] < 0
-        ok = tail[near & before]
-        if len(ok):
+        # `tail` runs backwards from the last fix; in ride order, the first stretch of fixes
+        # that reaches the start from before it is the arrival. What follows it (circling
+        # at the finish, the ride home) is not course, and a cut there would close the lap
+        # with a turn-around only a few metres wide.
+        cand = np.flatnonzero((dist <= settings.closed_loop_gap_m) & before)[::-1]
+        if len(cand) and _arrives_like_start(x, y, int(tail[cand[0]]), ahead, settings):
+            run = cand[: int(np.argmax(np.diff(cand) != -1)) + 1] if np.any(
+                np.diff(cand) != -1) else cand
+            best = int(tail[run[np.argmin(dist[run])]])
             closed = True
-            best = int(ok.max())
             x, y, ele = x[: best + 1], y[: best + 1], ele[: best + 1]
+        elif closed and not _arrives_like_start(x, y, len(x) - 1, ahead, settings):
+            # Out along a road and back along it to the start (a ride from home): joining
+            # the ends would be a U-turn at the seam, so this is a point-to-point course.
+            closed = False
     if closed:
         # The end fix that coincides with the start would be a zero-length step across the seam.
         while len(x) > 3 and np.hypot(x[-1] - x[0], y[-1] - y[0]) < settings.min_step_m:
             x, y, ele = x[:-1], y[:-1], ele[:-1]
     return Track(x, y, ele, origin, closed)
+
+
+def _arrives_like_start(x: np.ndarray, y: np.ndarray, end: int, ahead: np.ndarray,
+                        settings: FitSettings) -> bool:
+    """True if the track arrives at fix `end` heading within 90 deg of the start direction.
+
+    The arrival direction is the chord from the last fix `closed_loop_gap_m` or more
+    before `end` (so GPS jitter at the line does not decide it).
+    """
+    far = np.flatnonzero(np.hypot(x[:end] - x[end], y[:end] - y[end])
+                         > settings.closed_loop_gap_m)
+    if not len(far):
+        return True
+    arrive = np.array([x[end] - x[far[-1]], y[end] - y[far[-1]]])
+    return float(arrive @ ahead) > 0.0
 
 
 def _decimate(x: np.ndarray, y: np.ndarray, min_step_m: float) -> np.ndarray:

@@ -53,46 +53,56 @@ def synthetic_recording(seed: int, sigma_m: float = 3.0) -> tuple[Recording, lis
     return rec, parts, float(s_true[-1])
 
 
-@pytest.mark.parametrize("seed", [4, 8])
-def test_synthetic_track_recovers_radii_length_and_straights(seed: int) -> None:
+SEEDS = range(20)
+
+
+def _errors(seed: int) -> tuple[float, float, dict[float, list[float]], list[str]]:
+    """Length error, smallest straight radius, radius errors per true radius, directions."""
     rec, parts, length = synthetic_recording(seed)
     course = fit_course(rec)
-    assert course.length_m == pytest.approx(length, rel=0.005)
     radius = 1.0 / np.maximum(np.abs(course.kappa_per_m), 1e-12)
+    straight = np.inf
+    errors: dict[float, list[float]] = {12.0: [], 40.0: [], 25.0: []}
     for kind, start, end, true_radius in parts:
         if kind == "straight":
             # Away from the bends (the smoothing reaches ~50 m), a straight stays straight.
             inner = (course.s_m > start + 50) & (course.s_m < end - 50)
-            assert radius[inner].min() > 300.0, (start, radius[inner].min())
+            straight = min(straight, float(radius[inner].min()))
         else:
             near = (course.s_m > start - 20) & (course.s_m < end + 20)
-            assert radius[near].min() == pytest.approx(true_radius, rel=0.25), (start, true_radius)
-    # One corner per bend: hairpin, the two halves of the S, the 90 deg corner.
-    assert len(course.corners) == 4
-    assert [c.direction for c in course.corners] == ["left", "right", "left", "right"]
+            errors[true_radius].append(float(radius[near].min()) / true_radius - 1.0)
+    return course.length_m / length - 1.0, straight, errors, [c.direction for c in course.corners]
 
 
-def test_synthetic_track_over_many_seeds() -> None:
-    """The per-seed bar is not met on every noise draw (see bench/results_course.md);
-    what holds on every draw: the hairpin within 25 %, no straight below 80 m radius;
-    and on the median draw, every corner within 25 % and the length within 0.5 %."""
-    errors: dict[float, list[float]] = {12.0: [], 40.0: [], 25.0: []}
-    lengths = []
-    for seed in range(12):
-        rec, parts, length = synthetic_recording(seed)
-        course = fit_course(rec)
-        lengths.append(abs(course.length_m / length - 1.0))
-        radius = 1.0 / np.maximum(np.abs(course.kappa_per_m), 1e-12)
-        for kind, start, end, true_radius in parts:
-            if kind == "straight":
-                inner = (course.s_m > start + 50) & (course.s_m < end - 50)
-                assert radius[inner].min() > 80.0
-            else:
-                near = (course.s_m > start - 20) & (course.s_m < end + 20)
-                errors[true_radius].append(abs(radius[near].min() / true_radius - 1.0))
-    assert max(errors[12.0]) < 0.25
-    assert all(float(np.median(e)) < 0.25 for e in errors.values())
+def test_synthetic_track_over_seeds_0_to_19() -> None:
+    """Every seed of a fixed block (0-19), no picking.
+
+    The issue's per-seed bar (every corner within 25 %, length within 0.5 %, straights
+    > 300 m) is NOT met on every seed: the fit meets all of it on 4 of these 20 seeds
+    (see bench/results_course.md). What holds on every seed, and is asserted here: the
+    four bends are found with the right directions, the hairpin within 25 %, the S-bend
+    and the 25 m corner within 60 %, the length within 1.5 %, no straight below 150 m;
+    and over the block, the median error of each bend within 25 % and the median length
+    error within 0.5 %. The bars below are the measured spread plus a small margin, so a
+    change that makes the fit worse fails here.
+    """
+    lengths, passes = [], 0
+    per_radius: dict[float, list[float]] = {12.0: [], 40.0: [], 25.0: []}
+    for seed in SEEDS:
+        length_err, straight, errors, directions = _errors(seed)
+        assert directions == ["left", "right", "left", "right"], seed
+        assert abs(length_err) < 0.015, (seed, length_err)
+        assert straight > 150.0, (seed, straight)
+        assert all(abs(e) < 0.25 for e in errors[12.0]), (seed, errors)
+        assert all(abs(e) < 0.60 for e in errors[40.0] + errors[25.0]), (seed, errors)
+        for r, e in errors.items():
+            per_radius[r].extend(e)
+        lengths.append(abs(length_err))
+        passes += (abs(length_err) < 0.005 and straight > 300.0
+                   and all(abs(e) < 0.25 for e in sum(errors.values(), [])))
+    assert all(float(np.median(np.abs(e))) < 0.25 for e in per_radius.values())
     assert float(np.median(lengths)) < 0.005
+    assert passes >= 4
 
 
 def test_tokyo_lap_is_a_closed_loop_of_22_1_km(shared_data: Path) -> None:
@@ -118,6 +128,10 @@ def test_every_ride_gives_plausible_grades(shared_data: Path, name: str) -> None
     assert course.length_m > 10_000
     assert np.all(np.isfinite(course.kappa_per_m))
     assert np.all(np.diff(course.s_m) > 0)
+    # No turn-around a bike cannot ride: a ride that leaves and returns along the same road,
+    # or circles at the finish, must not be closed into a loop with a U-turn at the seam.
+    assert all(c.min_radius_m > 5.0 for c in course.corners), min(
+        c.min_radius_m for c in course.corners)
 
 
 def test_sauerland_pauses_and_jumps_leave_no_spurious_geometry(shared_data: Path) -> None:
