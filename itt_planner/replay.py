@@ -34,6 +34,8 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 REPLAY_METADATA = "itt_replay"
+#: IPOPT's own default for `max_wall_time`: no limit.
+NO_WALL_TIME_LIMIT_S = 1e20
 
 
 class Engine(Protocol):
@@ -46,6 +48,8 @@ class Engine(Protocol):
     def diagnostics(self, stamp_s: float) -> list[Diagnostic]: ...
     @property
     def state(self) -> RiderState | None: ...
+    #: Measured wall-clock solve times (s), never published.
+    solve_times_s: list[float]
 
 
 @dataclass(frozen=True)
@@ -56,14 +60,14 @@ class ReplaySettings:
         speed: pace as `speed` x real time by the stamps (1.0 = real time); None = as
             fast as possible.
         diagnostics_period_s: stamp time between `/diagnostics` messages.
-        keep_solve_times: write the measured solver wall time into each advice. Off by
-            default: it is the one wall-clock value in an advice, and without it two
-            replays give byte-identical advice (the times go to the result instead).
+        deterministic: build the engine in its deterministic mode (no wall-clock values
+            in advice and diagnostics, overruns not judged by the wall clock), so two
+            replays give byte-identical output; False behaves as live, timing included.
     """
 
     speed: float | None = None
     diagnostics_period_s: float = 1.0
-    keep_solve_times: bool = False
+    deterministic: bool = True
     namespace: str = DEFAULT_NAMESPACE
 
     def __post_init__(self) -> None:
@@ -170,7 +174,7 @@ def replay(log_path: str | Path, engine: Engine, *, output: str | Path | None = 
                 if writer is not None:
                     writer.write_raw(raw)
                 result.messages_in += 1
-                stamp = raw.log_time_ns * 1e-9
+                stamp = raw.log_time_ns / 1e9  # correctly rounded: whole seconds stay whole
                 first = stamp if first is None else first
                 last = stamp if last is None else max(last, stamp)
                 loop.advance_to(stamp)
@@ -191,6 +195,7 @@ def replay(log_path: str | Path, engine: Engine, *, output: str | Path | None = 
             writer.close()
             result.topics_out = dict(writer.counts)
     result.wall_time_s = time.perf_counter() - start
+    result.solve_times_s = list(engine.solve_times_s)
     result.ride_duration_s = (last - first) if first is not None and last is not None else 0.0
     result.warnings.extend(reader.warnings)
     result.warnings.extend(f"input had {n} messages on {topic}: replaced by the replay's own"
@@ -246,10 +251,7 @@ class _Loop:
         advice = self.engine.update(stamp_s)
         if advice is not None:
             self.result.advice_out += 1
-            self.result.solve_times_s.append(advice.solve_time_s)
             self.result.fallbacks += bool(advice.fallback)
-            if not self.settings.keep_solve_times:
-                advice = dataclasses.replace(advice, solve_time_s=0.0)
             if self.writer is not None:
                 self.writer.write_advice(advice)
             if self.recorder is not None:
@@ -257,7 +259,7 @@ class _Loop:
                 self.recorder.log_advice(advice)
         elif self.recorder is not None and (state := self.engine.state) is not None:
             self.recorder.log_state(state)
-        if stamp_s - self.last_diagnostics >= self.settings.diagnostics_period_s:
+        if stamp_s - self.last_diagnostics >= self.settings.diagnostics_period_s - 1e-6:
             self.last_diagnostics = stamp_s
             diagnostics = self.engine.diagnostics(stamp_s)
             if self.writer is not None:
@@ -298,6 +300,7 @@ def replay_ride(log_path: str | Path, course_spec: str, rider_spec: str, *,
     from itt_planner.conditions import Conditions  # noqa: PLC0415
     from itt_planner.course_loader import load_course  # noqa: PLC0415
     from itt_planner.engine import EngineSettings, PacingEngine  # noqa: PLC0415
+    from itt_planner.horizon import HorizonPlanner, HorizonSettings  # noqa: PLC0415
     from itt_planner.ocp import OcpSettings  # noqa: PLC0415
     from itt_planner.plan_cache import load_or_solve  # noqa: PLC0415
     from itt_planner.rider import load_rider  # noqa: PLC0415
@@ -306,9 +309,16 @@ def replay_ride(log_path: str | Path, course_spec: str, rider_spec: str, *,
     rider = load_rider(rider_spec)
     conditions = Conditions()
     plan = load_or_solve(course, rider, conditions, OcpSettings(), model, cache_dir=cache_dir)
-    engine = PacingEngine(course, rider, plan, conditions=conditions,
+    horizon = HorizonSettings(horizon_m=horizon_m)
+    if settings.deterministic:
+        # IPOPT's wall-time cap would make the result depend on the machine's load; the
+        # iteration cap stays the budget.
+        horizon = dataclasses.replace(horizon, max_wall_time_s=NO_WALL_TIME_LIMIT_S)
+    planner = HorizonPlanner(course, rider, plan, conditions=conditions, settings=horizon)
+    engine = PacingEngine(course, rider, plan, conditions=conditions, planner=planner,
                           settings=EngineSettings(replan_period_s=replan_period_s,
-                                                  horizon_m=horizon_m))
+                                                  horizon_m=horizon_m,
+                                                  deterministic=settings.deterministic))
     recorder = None
     rec = None
     if rrd is not None:

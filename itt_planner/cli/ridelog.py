@@ -51,17 +51,23 @@ def _human_replay(r: dict[str, Any]) -> str:
 @app.command("replay")
 def replay_cli(
     log: Path = typer.Argument(..., help="MCAP ride log (from `itt-planner import` or a bag)."),
-    course: str = typer.Option(..., "--course", help="Course: demo name, GPS track or .course.npz."),
+    course: str = typer.Option(..., "--course",
+                               help="Course: demo name, GPS track or .course.npz."),
     rider: str = typer.Option(..., "--rider", help="Rider preset or rider YAML."),
-    out: Path | None = typer.Option(None, "--out", help="Output MCAP: inputs + advice + diagnostics."),
+    out: Path | None = typer.Option(None, "--out",
+                                    help="Output MCAP: inputs + advice + diagnostics."),
     rrd: Path | None = typer.Option(None, "--rrd", help="Rerun recording of the replay (.rrd)."),
     speed: str = typer.Option("max", "--speed", help="'max', or a multiple of real time (1, 10)."),
-    replan_period: float = typer.Option(1.0, "--replan-period", help="Stamp time between replans (s)."),
+    replan_period: float = typer.Option(1.0, "--replan-period",
+                                        help="Stamp time between replans (s)."),
     horizon_m: float = typer.Option(1000.0, "--horizon-m", help="Receding-horizon length (m)."),
     model: str = typer.Option("3d", "--model", help="Full-course plan model: 3d or 1d."),
-    keep_solve_times: bool = typer.Option(
-        False, "--keep-solve-times",
-        help="Write solver wall times into the advice (the replay is then not byte-reproducible)."),
+    cache_dir: Path = typer.Option(Path(".itt_cache"), "--cache-dir",
+                                   help="Where full-course plans are cached."),
+    live_timing: bool = typer.Option(
+        False, "--live-timing",
+        help="Judge solver overruns by the wall clock and publish solve times, as live "
+             "(the output is then not byte-reproducible)."),
     as_json: bool = JSON_OPTION,
 ) -> None:
     """Replay a ride log through the pacing engine; write advice to MCAP (and Rerun)."""
@@ -70,12 +76,12 @@ def replay_cli(
 
     with errors_to_exit(as_json):
         try:
-            settings = ReplaySettings(speed=parse_speed(speed), keep_solve_times=keep_solve_times)
+            settings = ReplaySettings(speed=parse_speed(speed), deterministic=not live_timing)
         except ValueError as err:
             raise IttError(str(err)) from None
         result = replay_ride(log, course, rider, output=out, rrd=rrd, settings=settings,
                              replan_period_s=replan_period, horizon_m=horizon_m, model=model,
-                             progress=progress_enabled()).as_dict()
+                             cache_dir=cache_dir, progress=progress_enabled()).as_dict()
     emit(result, as_json, _human_replay)
     if result["errors"]:  # damaged input: everything readable was replayed and written
         raise typer.Exit(code=1)

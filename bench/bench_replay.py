@@ -1,0 +1,124 @@
+"""Benchmark of the embedded replay: a ~24-minute ride with 1 Hz replanning.
+
+Runs `itt_planner.replay.replay` (as `itt-planner replay --speed max` does) on the demo
+bag `bags/typical_verona-like.mcap` when it exists, else on a ride log simulated here
+from the full-course plan with the project's sensor model (GPS 1 Hz with 3 m noise,
+speed and power noise). Prints medians of >= 3 runs of:
+
+- full:       replay with the engine replanning every 1 s of stamp time, output MCAP written;
+- estimate:   the same engine and log, replanning disabled (one advice, then estimation
+              only): the cost of everything but the horizon solves;
+- decode:     reading and decoding the log only (the floor of any replay).
+
+Usage: .venv/bin/python bench/bench_replay.py [--runs 3] [--model 1d|3d]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from itt_planner.conditions import Conditions  # noqa: E402
+from itt_planner.course_loader import load_course  # noqa: E402
+from itt_planner.engine import EngineSettings, PacingEngine  # noqa: E402
+from itt_planner.horizon import HorizonPlanner, HorizonSettings  # noqa: E402
+from itt_planner.ocp import OcpSettings  # noqa: E402
+from itt_planner.plan_cache import load_or_solve  # noqa: E402
+from itt_planner.replay import ReplaySettings, replay  # noqa: E402
+from itt_planner.rider import PRESETS  # noqa: E402
+from itt_planner.ridelog import RideLogReader, RideLogWriter, RideMetadata  # noqa: E402
+from itt_planner.simulate import sensor_samples  # noqa: E402
+
+COURSE = "verona-like"
+RIDER = "typical"
+DEMO_BAG = ROOT / "bags" / "typical_verona-like.mcap"
+T0_S = 1_779_000_000.0  # a POSIX start time for the simulated log
+
+
+def simulated_log(path: Path, course, plan) -> Path:  # noqa: ANN001
+    """The rider rides the plan; the sensors see it with the project's noise model."""
+    samples = sensor_samples(course, plan.t_s, plan.s_m, plan.n_m, plan.v_mps, plan.power_w,
+                             np.random.default_rng(7), t0_s=T0_S)
+    meta = RideMetadata(source=f"simulated: {RIDER} rides the {COURSE} plan", rider=RIDER)
+    with RideLogWriter(path, metadata=meta) as writer:
+        for sample in samples:
+            writer.write_sample(sample)
+    return path
+
+
+def median_of(runs: int, fn) -> tuple[float, list[float], object]:  # noqa: ANN001
+    times, last = [], None
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        last = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), times, last
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=3)
+    parser.add_argument("--model", default="3d", choices=("1d", "3d"))
+    args = parser.parse_args()
+
+    course = load_course(COURSE)
+    rider = PRESETS[RIDER]
+    conditions = Conditions()
+    t0 = time.perf_counter()
+    plan = load_or_solve(course, rider, conditions, OcpSettings(), args.model,
+                         cache_dir=ROOT / ".itt_cache")
+    print(f"full-course plan ({args.model}): {time.perf_counter() - t0:.1f} s "
+          f"(cached after the first run), finish {plan.finish_time_s / 60:.1f} min")
+    t0 = time.perf_counter()
+    planner = HorizonPlanner(course, rider, plan, conditions=conditions,
+                             settings=HorizonSettings(horizon_m=1000.0))
+    print(f"horizon planner built once: {time.perf_counter() - t0:.1f} s")
+
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp_dir = Path(tmp)
+        log_path = DEMO_BAG if DEMO_BAG.is_file() else simulated_log(tmp_dir / "ride.mcap",
+                                                                      course, plan)
+        print(f"input: {log_path.relative_to(ROOT) if log_path == DEMO_BAG else 'simulated'}")
+
+        def run(replan_period_s: float) -> object:
+            engine = PacingEngine(course, rider, plan, conditions=conditions, planner=planner,
+                                  settings=EngineSettings(replan_period_s=replan_period_s,
+                                                          deterministic=True))
+            return replay(log_path, engine, output=tmp_dir / "advice.mcap",
+                          settings=ReplaySettings())
+
+        full_s, full_all, full = median_of(args.runs, lambda: run(1.0))
+        est_s, est_all, est = median_of(args.runs, lambda: run(math.inf))
+        dec_s, dec_all, _ = median_of(args.runs, lambda: sum(1 for _ in RideLogReader(log_path)))
+
+    ride_s = full.ride_duration_s
+    solve = sorted(full.solve_times_s)
+    print(f"ride: {ride_s / 60:.1f} min of stamps, {full.messages_in} input messages, "
+          f"{full.advice_out} advice ({full.fallbacks} fallbacks)")
+    for name, med, all_, result in (("full (1 Hz replans)", full_s, full_all, full),
+                                    ("estimate only", est_s, est_all, est),
+                                    ("decode only", dec_s, dec_all, None)):
+        extra = f", {result.advice_out} advice" if result is not None else ""
+        print(f"{name:22s} median {med:7.2f} s  ({', '.join(f'{t:.2f}' for t in all_)})  "
+              f"{ride_s / med:7.1f}x real time{extra}")
+    print(f"horizon solves: median {solve[len(solve) // 2] * 1000:.1f} ms, "
+          f"p95 {solve[int(0.95 * (len(solve) - 1))] * 1000:.1f} ms, "
+          f"max {solve[-1] * 1000:.1f} ms over {len(solve)} solves")
+    print(f"ratios: full / estimate-only = {full_s / est_s:.1f}, "
+          f"full / decode-only = {full_s / dec_s:.1f}; "
+          f"solves take {sum(solve) / full.wall_time_s * 100:.0f} % of the last full run")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
