@@ -11,6 +11,7 @@ import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -50,17 +51,14 @@ def make_ride(folder: Path, *, input_hz: float = 4.0, gps_hz: float = 1.0,
     """Ride the hairpin test course (~2.7 km, ~3 min) along its optimal plan.
 
     The truth is the plan's trajectory; the sensors (`simulate.sensor_samples`: GPS
-    bias + noise, wheel speed, power) sample it at the given rates. Solving the plan
-    takes ~10 s.
+    bias + noise, wheel speed, power) sample it at the given rates. The course and plan
+    are solved once per process (~10 s).
     """
-    from itt_planner.ocp import solve_plan
-    from itt_planner.rider import PRESETS
     from itt_planner.ridelog import RideLogWriter, RideMetadata
-    from itt_planner.simulate import SensorSettings, hairpin_course, sensor_samples
+    from itt_planner.simulate import SensorSettings, sensor_samples
 
     folder.mkdir(parents=True, exist_ok=True)
-    course = hairpin_course()
-    plan = solve_plan(course, PRESETS["paper"])
+    course, plan, course_path, plan_path = _course_and_plan(folder.parent)
     end = plan.finish_time_s if duration_s is None else min(duration_s, plan.finish_time_s)
     t = np.arange(0.0, end, 1.0 / max(input_hz, gps_hz) / 2)
     s = np.interp(t, plan.t_s, plan.s_m)
@@ -69,14 +67,30 @@ def make_ride(folder: Path, *, input_hz: float = 4.0, gps_hz: float = 1.0,
         np.interp(s, plan.s_m, plan.power_w), np.random.default_rng(seed),
         SensorSettings(gps_period_s=1.0 / gps_hz, speed_period_s=1.0 / input_hz,
                        power_period_s=1.0 / input_hz), t0_s=RIDE_T0_S)
-    ride = Ride(course=course.save(folder / "hairpin.course.npz"),
-                plan=plan.save(folder / "hairpin.plan.npz"), log=folder / "ride.mcap",
+    ride = Ride(course=course_path, plan=plan_path, log=folder / "ride.mcap",
                 duration_s=float(end))
     with RideLogWriter(ride.log, metadata=RideMetadata(source="tests/dds_support.py",
                                                        rider="paper")) as writer:
         for sample in samples:
             writer.write_sample(sample)
     return ride
+
+
+_SOLVED: dict[Path, tuple[Any, Any, Path, Path]] = {}
+
+
+def _course_and_plan(folder: Path) -> tuple[Any, Any, Path, Path]:
+    """The hairpin course and its `paper` plan, solved and saved once per folder."""
+    if folder not in _SOLVED:
+        from itt_planner.ocp import solve_plan
+        from itt_planner.rider import PRESETS
+        from itt_planner.simulate import hairpin_course
+
+        course = hairpin_course()
+        plan = solve_plan(course, PRESETS["paper"])
+        _SOLVED[folder] = (course, plan, course.save(folder / "hairpin.course.npz"),
+                           plan.save(folder / "hairpin.plan.npz"))
+    return _SOLVED[folder]
 
 
 def cli(*args: str) -> list[str]:
