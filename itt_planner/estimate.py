@@ -73,7 +73,11 @@ class EstimatorSettings:
             (samples of different topics may interleave slightly out of order).
         catchup_mps: how fast the published `s` may catch up with the filter, beyond
             the speed itself.
-        lateral_tau_s: time constant of the lateral offset low-pass.
+        lateral_tau_s: time constant of the lateral offset low-pass: bike GPS cannot
+            place a rider within a lane (its 3-5 m error is a slowly wandering bias), so
+            `n` is only a slow, conservative estimate ...
+        lateral_edge_m: ... kept this far inside the road edges (a noisy `n` at the
+            edge would make the planner brake for a road edge the rider is not at).
         global_window_m: a local search window wider than this (after a long gap)
             becomes a global search that prefers the predicted `s`.
         wprime_model: E9 variant.
@@ -95,7 +99,8 @@ class EstimatorSettings:
     max_speed_mps: float = 35.0
     max_lag_s: float = 2.0
     catchup_mps: float = 5.0
-    lateral_tau_s: float = 2.0
+    lateral_tau_s: float = 10.0
+    lateral_edge_m: float = 1.0
     global_window_m: float = 2000.0
     wprime_model: WPrimeModel = WPrimeModel.SKIBA
 
@@ -355,7 +360,8 @@ class StateEstimator:
         s = self._wrap(min(self._s_pub, self.course.length_m))
         wl = float(self.course.at("width_left_m", s))
         wr = float(self.course.at("width_right_m", s))
-        self._n = float(np.clip(self._n + k * (n - self._n), -wr, wl))
+        edge = self.settings.lateral_edge_m
+        self._n = float(np.clip(self._n + k * (n - self._n), -wr + edge, wl - edge))
 
     def _reacquire(self, x: float, y: float, std: float) -> bool:
         """Lost: several fixes in a row rejected. Match the latest one globally."""

@@ -264,7 +264,7 @@ def _closed_loop_step(behaviour: RiderBehaviour, substeps: int) -> ca.Function:
     q = {name: p[i] for i, name in enumerate(PARAMS)}
     g = GRAVITY_MPS2
     n_ref, dn_ref_ds, w_target, v_brake, kappa_ff = (ref[i] for i in range(len(_REFS)))
-    i_delta = model.index("delta_n")
+    i_delta, i_w = model.index("delta_n"), model.index("w_n")
 
     def controlled(xk: ca.SX) -> tuple[ca.SX, ca.SX]:
         n, alpha, phi, phi_dot, v, w_n, _, e_n = (xk[i] for i in range(model.nx))
@@ -286,14 +286,18 @@ def _closed_loop_step(behaviour: RiderBehaviour, substeps: int) -> ca.Function:
         yaw_cmd = (phi_ddot_des / c - g * ca.sin(phi)) / (v_safe * ca.cos(phi))
         delta = ca.atan(yaw_cmd * q["wheelbase"] / v_safe)
         delta = ca.fmin(ca.fmax(delta, -q["steer_max"]), q["steer_max"])
-        x_ctrl = ca.vertcat(xk[:i_delta], delta / q["steer_max"], xk[i_delta + 1:])
+        # An exhausted rider cannot hold more than CP: the cap acts on the delivered
+        # power at once (not through the lag), so W' cannot be overdrawn.
+        cap = (q["cp"] - 10.0) / q["p_max"]  # below CP (the E9 switch is smoothed ~5 W)
+        w_applied = ca.if_else(e_n < b.w_reserve, ca.fmin(w_n, cap), w_n)
+        x_ctrl = ca.vertcat(xk[:i_w], w_applied, xk[i_w + 1:i_delta], delta / q["steer_max"],
+                            xk[i_delta + 1:])
         # Power command.
         over = v - v_brake - b.brake_margin_mps
         w_cmd = ca.if_else(over > 0, ca.fmin(w_target, -0.5 * over), w_target)
         w_cmd = ca.fmax(w_cmd, -1)
         gate = ca.fmax(0, 1 - (phi / q["pedal_lean"]) ** 2)  # C15
         w_cmd = ca.fmin(w_cmd, gate)
-        cap = (q["cp"] - 10.0) / q["p_max"]  # exhausted: below CP (E9 smoothing ~5 W)
         w_cmd = ca.if_else(e_n < b.w_reserve, ca.fmin(w_cmd, cap), w_cmd)
         u_w = (w_cmd - w_n) / b.power_lag_s * q["p_max"] / q["power_rate_max"]
         return x_ctrl, ca.vertcat(0, u_w)

@@ -1,0 +1,126 @@
+"""Engine-level replan latency over a whole simulated verona-like race.
+
+For horizons of 500 m and 1 km: one closed-loop race (`simulate_ride`, nominal, replan
+every 1 s of ride time, 1 Hz sensors) through the `PacingEngine`, recording every
+replan's wall time (warm: the planner's shifted warm start, as live). Then every 10th
+state of that race is re-solved cold (`HorizonPlanner.reset()` before each solve, so the
+start is the full-course plan, not the previous solution). Baseline measured in the same
+run: re-solving the whole REMAINING course with the full-course OCP (`ocp.solve_plan` on
+the course cut at the rider's position, starting at the rider's speed with W' full) at
+a few points: too slow to do at every replan, which is the point.
+
+Run: `.venv/bin/python bench/bench_closed_loop.py [--quick]` (--quick: 1 km horizon only,
+a quarter of the race). The race itself is one run per horizon: its ~1000 replans are the
+sample whose median / p95 / max are printed; the cold and baseline figures are medians
+over their sample points.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+
+from itt_planner.conditions import Conditions
+from itt_planner.course import Course
+from itt_planner.course_loader import load_course
+from itt_planner.engine import EngineSettings
+from itt_planner.horizon import HorizonPlanner, HorizonSettings
+from itt_planner.ocp import OcpSettings, solve_plan
+from itt_planner.plan_cache import load_or_solve
+from itt_planner.rider import PRESETS
+from itt_planner.simulate import simulate_ride
+
+RIDER = PRESETS["paper"]
+
+
+def _stats(x: list[float]) -> dict[str, float]:
+    a = np.asarray(x)
+    return {"n": len(a), "median": float(np.median(a)), "p95": float(np.percentile(a, 95)),
+            "max": float(a.max())}
+
+
+def _remaining(course: Course, s_m: float) -> Course:
+    """The course from `s_m` to the finish, as a course of its own."""
+    i = int(np.searchsorted(course.s_m, s_m))
+    sl = slice(i, None)
+    return Course.from_centerline(
+        f"{course.name}@{s_m:.0f}", course.x_m[sl], course.y_m[sl], course.z_m[sl],
+        origin=course.origin, ds_m=course.ds_m, theta_rad=course.theta_rad[sl],
+        kappa_per_m=course.kappa_per_m[sl], width_left_m=course.width_left_m[sl],
+        width_right_m=course.width_right_m[sl], synthetic=course.synthetic)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--json", type=Path, help="also write the figures here")
+    args = ap.parse_args()
+    logging.disable(logging.WARNING)
+    course = load_course("verona-like")
+    plan = load_or_solve(course, RIDER, Conditions(), OcpSettings(), "3d")
+    print(f"verona-like {course.length_m / 1000:.2f} km, plan {plan.finish_time_s:.1f} s "
+          f"({plan.solver_status})")
+    results: dict[str, object] = {"plan_finish_time_s": plan.finish_time_s}
+    horizons = (1000.0,) if args.quick else (500.0, 1000.0)
+    max_time = plan.finish_time_s / 4 if args.quick else None
+    for horizon in horizons:
+        planner = HorizonPlanner(course, RIDER, plan,
+                                 settings=HorizonSettings(horizon_m=horizon))
+        t0 = time.perf_counter()
+        res = simulate_ride(course, RIDER, plan, planner=planner, seed=0,
+                            engine_settings=EngineSettings(horizon_m=horizon),
+                            max_time_s=max_time)
+        wall = time.perf_counter() - t0
+        warm = _stats(res.solve_times_s)
+        cold_times = []
+        for advice in res.advice[::10]:
+            planner.reset()
+            t1 = time.perf_counter()
+            planner.solve(advice.state)
+            cold_times.append(time.perf_counter() - t1)
+        cold = _stats(cold_times)
+        over_1s = sum(t > 1.0 for t in res.solve_times_s)
+        results[f"horizon_{horizon:.0f}m"] = {
+            "warm": warm, "cold": cold, "replans_over_1s": over_1s,
+            "fallbacks": res.fallbacks, "finish_time_s": res.finish_time_s,
+            "race_wall_s": wall,
+        }
+        print(f"H={horizon:.0f} m: race {wall:.0f} s wall, finish {res.finish_time_s:.1f} s, "
+              f"{warm['n']} replans, {res.fallbacks} fallbacks, {over_1s} over 1 s")
+        print(f"  warm  median {warm['median'] * 1e3:6.0f} ms  p95 {warm['p95'] * 1e3:6.0f} ms  "
+              f"max {warm['max'] * 1e3:6.0f} ms")
+        print(f"  cold  median {cold['median'] * 1e3:6.0f} ms  p95 {cold['p95'] * 1e3:6.0f} ms  "
+              f"max {cold['max'] * 1e3:6.0f} ms  ({cold['n']} states)")
+    # Baseline: the whole remaining course, re-solved at a few points of the race.
+    points = (0.5,) if args.quick else (0.25, 0.5, 0.75)
+    full = []
+    for frac in points:
+        s = frac * course.length_m
+        rest = _remaining(course, s)
+        settings = dataclasses.replace(OcpSettings(), start_speed_mps=float(plan.at("v_mps", s)))
+        t0 = time.perf_counter()
+        sol = solve_plan(rest, RIDER, settings=settings)
+        full.append(time.perf_counter() - t0)
+        print(f"  remaining course from {s / 1000:.1f} km ({rest.length_m / 1000:.1f} km): "
+              f"{full[-1]:.1f} s ({sol.solver_status})")
+    base = float(np.median(full))
+    results["remaining_course_resolve_s"] = {"points": list(points), "times_s": full,
+                                             "median": base}
+    for horizon in horizons:
+        r = results[f"horizon_{horizon:.0f}m"]
+        ratio = base / r["warm"]["median"]  # type: ignore[index]
+        r["speedup_vs_remaining_course"] = ratio  # type: ignore[index]
+        print(f"H={horizon:.0f} m: warm replan median is {ratio:.0f}x faster than re-solving "
+              f"the remaining course (median {base:.1f} s)")
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=2))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,178 @@
+"""Closed-loop virtual rider: sensors, the time-domain 3D model against the plan, the
+scenarios, replanned vs open loop vs even CP, and `itt-planner simulate`.
+
+The default closed-loop runs use the ~2.8 km technical test course (`hairpin_course`)
+with a 400 m horizon replanned every 2 s, so they take seconds of solver time each;
+the verona-like race and the remaining scenarios are `slow` (and in
+bench/bench_closed_loop.py)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from itt_planner.cli import app
+from itt_planner.conditions import Conditions
+from itt_planner.engine import EngineSettings
+from itt_planner.horizon import HorizonPlanner, HorizonSettings
+from itt_planner.ocp import OcpSettings
+from itt_planner.plan_cache import load_or_solve
+from itt_planner.rider import PRESETS
+from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.simulate import (
+    Policy, SensorSettings, Sensors, compare_policies, hairpin_course, simulate_ride,
+)
+
+RIDER = PRESETS["paper"]
+FAST_HORIZON = HorizonSettings(horizon_m=400.0, n_intervals=50, max_wall_time_s=30.0)
+#: Replan every 2 s; no overrun judged on a loaded 2-core machine.
+FAST_ENGINE = EngineSettings(replan_period_s=2.0, max_solve_time_s=30.0)
+
+
+@pytest.fixture(scope="module")
+def course():
+    return hairpin_course()
+
+
+@pytest.fixture(scope="module")
+def plan(course, request):
+    return load_or_solve(course, RIDER, Conditions(), OcpSettings(), "3d",
+                         cache_dir=request.config.cache.mkdir("itt_plans"))
+
+
+def _compare(course, plan, scenario):
+    return compare_policies(course, RIDER, plan, scenario=scenario, seed=1,
+                            engine_settings=FAST_ENGINE,
+                            planner=HorizonPlanner(course, RIDER, plan, settings=FAST_HORIZON))
+
+
+def test_sensor_model(course):
+    """1 Hz GPS with ~3 m error per axis, a dropout, 1 Hz wheel speed and power; power
+    meters read zero while braking."""
+    settings = SensorSettings(dropouts=((100.0, 60.0),))
+    sensors = Sensors(course, settings, np.random.default_rng(0))
+    errors, samples = [], []
+    for k in range(3000):
+        t = 0.1 * k
+        s = 10.0 * t % course.length_m
+        power = -300.0 if 50 <= t < 60 else 400.0
+        out = sensors.sample(t, s, 0.0, 10.0, power)
+        samples += out
+        for smp in out:
+            if isinstance(smp, GpsFix):
+                x, y, _ = course.from_geodetic(smp.lat_deg, smp.lon_deg, smp.alt_m)
+                xt, yt, _ = course.enu_at(s, 0.0)
+                errors.append((float(x - xt), float(y - yt)))
+    gps = [x for x in samples if isinstance(x, GpsFix)]
+    assert len(gps) == 300 - 60  # 1 Hz minus the 60 s dropout
+    assert not any(100.0 <= g.stamp_s < 160.0 for g in gps)
+    assert np.std(np.array(errors)) == pytest.approx(3.0, rel=0.35)
+    powers = [x for x in samples if isinstance(x, PowerReading)]
+    assert len(powers) == 300 and all(p.power_w == 0.0 for p in powers if 50 <= p.stamp_s < 60)
+    assert len([x for x in samples if isinstance(x, WheelSpeed)]) == 300
+    stamps = [x.stamp_s for x in samples]
+    assert stamps == sorted(stamps)
+
+
+def test_time_domain_model_reproduces_the_plan(course, plan):
+    """Following the full-course plan in time (lag, noise, path-following controller),
+    the 3D model ends within 2 % of the OCP's time and stays on the planned line."""
+    res = simulate_ride(course, RIDER, plan, policy=Policy.OPEN_LOOP, seed=1)
+    assert res.finish_time_s == pytest.approx(plan.finish_time_s, rel=0.02)
+    err = res.n_m - plan.at("n_m", res.s_m)
+    assert np.sqrt(np.mean(err ** 2)) < 1.0
+    # The speed trace follows the plan's, corners included.
+    v_err = res.v_mps - plan.at("v_mps", res.s_m)
+    assert np.median(np.abs(v_err[res.t_s > 5.0])) < 0.6
+    assert np.all(np.diff(res.s_m) >= 0)
+
+
+def test_scenarios_change_the_truth_not_the_plan(course, plan):
+    nominal = simulate_ride(course, RIDER, plan, policy=Policy.EVEN_CP, seed=1)
+    weak = simulate_ride(course, RIDER, plan, policy=Policy.EVEN_CP, seed=1,
+                         scenario="cp-overestimated")
+    windy = simulate_ride(course, RIDER, plan, policy=Policy.EVEN_CP, seed=1,
+                          scenario="headwind")
+    # Even pacing at the believed CP drains a rider whose true CP is 5 % lower ...
+    assert weak.w_prime_j[-1] < nominal.w_prime_j[-1] - 1000.0
+    # ... and a head wind on the second half only slows the second half.
+    half = course.length_m / 2
+    t_half = [np.interp(half, r.s_m, r.t_s) for r in (nominal, windy)]
+    assert t_half[1] == pytest.approx(t_half[0], abs=0.05)
+    assert windy.finish_time_s > nominal.finish_time_s + 3.0
+
+
+def test_nominal_replanned_close_to_the_optimum(course, plan):
+    out = _compare(course, plan, "nominal")
+    replanned = out["replanned"]
+    assert replanned["finish_time_s"] <= 1.01 * plan.finish_time_s
+    for policy in ("replanned", "open_loop", "even_cp"):
+        assert out[policy]["w_prime_min_j"] >= 0.0
+    assert out["margins"]["replanned_vs_even_cp_s"] > 0
+    lat = out["replan_latency_s"]
+    assert 0 < lat["median"] <= lat["p95"] <= lat["max"]
+    assert out["replans"] >= plan.finish_time_s / 2 - 2
+
+
+def test_hot_start_replanned_beats_open_loop(course, plan):
+    """The rider burns W' over the first third; the blind plan then runs dry and
+    finishes with W' it could not place, the replanned ride re-budgets it."""
+    out = _compare(course, plan, "hot-start")
+    assert out["replanned"]["w_prime_min_j"] >= 0.0
+    assert out["margins"]["replanned_vs_open_loop_s"] > 0.0
+    assert out["open_loop"]["w_prime_end_j"] > out["replanned"]["w_prime_end_j"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scenario", ["cp-overestimated", "headwind"])
+def test_other_scenarios(course, plan, scenario):
+    out = _compare(course, plan, scenario)
+    for policy in ("replanned", "open_loop", "even_cp"):
+        assert out[policy]["w_prime_min_j"] >= 0.0
+    if scenario == "cp-overestimated":
+        assert out["margins"]["replanned_vs_open_loop_s"] > 0.0
+
+
+@pytest.mark.slow
+def test_verona_like_nominal(request):
+    from itt_planner.course_loader import load_course
+
+    course = load_course("verona-like")
+    plan = load_or_solve(course, RIDER, Conditions(), OcpSettings(), "3d",
+                         cache_dir=request.config.cache.mkdir("itt_plans"))
+    out = compare_policies(course, RIDER, plan, scenario="nominal", seed=0,
+                           engine_settings=EngineSettings(max_solve_time_s=30.0))
+    assert out["replanned"]["finish_time_s"] <= 1.01 * plan.finish_time_s
+    assert out["replanned"]["w_prime_min_j"] >= 0.0
+
+
+def test_cli_simulate_json(tmp_path):
+    """The CLI on a 700 m course (a straight and one hairpin), so the plan and the ~40
+    replans take seconds."""
+    spec = {"name": "mini", "segments": [
+        {"type": "straight", "length_m": 300, "grade_pct": 2},
+        {"type": "clothoid", "length_m": 10, "radius_m": 15, "direction": "left"},
+        {"type": "arc", "angle_deg": 150, "radius_m": 15, "direction": "left"},
+        {"type": "clothoid", "length_m": 10},
+        {"type": "straight", "length_m": 330}]}
+    path = tmp_path / "mini.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    result = CliRunner().invoke(app, [
+        "simulate", "--course", str(path), "--rider", "paper", "--scenario", "hot-start",
+        "--horizon-m", "300", "--replan-period-s", "2", "--cache-dir", str(tmp_path / "c"),
+        "--json"])
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.stdout)
+    for policy in ("replanned", "open_loop", "even_cp"):
+        assert set(out[policy]) >= {"finish_time_s", "w_prime_min_j", "w_prime_end_j"}
+        assert math.isfinite(out[policy]["finish_time_s"])
+    assert set(out["replan_latency_s"]) == {"median", "p95", "max"}
+    assert out["plan_finish_time_s"] > 0
+    bad = CliRunner().invoke(app, ["simulate", "--course", str(path), "--scenario", "storm",
+                                   "--cache-dir", str(tmp_path / "c"), "--json"])
+    assert bad.exit_code == 1 and "error" in json.loads(bad.stdout)
