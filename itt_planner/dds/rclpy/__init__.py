@@ -6,6 +6,9 @@ Use it where `rclpy` would be imported: `rclpy.init()`, `rclpy.spin(node)`,
 
 from __future__ import annotations
 
+import logging as pylogging
+import sys
+
 from itt_planner.dds.context import Context, default_context, install_signal_handlers
 from itt_planner.dds.rclpy import (
     callback_groups,
@@ -37,6 +40,9 @@ def init(*, args: list[str] | None = None, context: Context | None = None,
     """
     ctx = context or default_context
     ctx.init(args, domain_id)
+    if not pylogging.getLogger().handlers:  # rclpy logs INFO to the console by default
+        pylogging.basicConfig(level=pylogging.INFO, stream=sys.stderr,
+                              format="[%(levelname)s] [%(created).3f] [%(name)s]: %(message)s")
     if signal_handler_options is not False:
         install_signal_handlers(ctx)
 
