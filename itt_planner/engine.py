@@ -309,7 +309,8 @@ class PacingEngine:
             level, msg = Level.OK, f"solved ({self._last_status})"
         else:
             level = Level.ERROR if failures >= st.failures_for_error else Level.WARN
-            msg = f"{failures} failed solve(s) in a row ({self._last_status}): last good advice in force"
+            msg = (f"{failures} failed solve(s) in a row ({self._last_status}): "
+                   "last good advice in force")
         values = {"status": self._last_status, "iterations": str(self._last_iterations),
                   "consecutive_failures": str(failures),
                   **{k: str(stats.get(k, 0)) for k in

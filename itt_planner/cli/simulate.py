@@ -15,8 +15,9 @@ def _human(r: dict[str, Any]) -> str:
              f"full-course optimum {r['plan_finish_time_s']:.1f} s"]
     for policy in ("replanned", "open_loop", "even_cp"):
         p = r[policy]
-        lines.append(f"  {policy:10s} finish {p['finish_time_s']:8.1f} s   W' min "
-                     f"{p['w_prime_min_j'] / 1000:5.1f} kJ   W' end {p['w_prime_end_j'] / 1000:5.1f} kJ")
+        lines.append(f"  {policy:10s} finish {p['finish_time_s']:8.1f} s   "
+                     f"W' min {p['w_prime_min_j'] / 1000:5.1f} kJ   "
+                     f"W' end {p['w_prime_end_j'] / 1000:5.1f} kJ")
     m, lat = r["margins"], r["replan_latency_s"]
     lines.append(f"  replanned is {m['replanned_vs_open_loop_s']:+.1f} s vs open loop, "
                  f"{m['replanned_vs_even_cp_s']:+.1f} s vs even CP, "
