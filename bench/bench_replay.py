@@ -1,6 +1,7 @@
 """Benchmark of the embedded replay: a ~24-minute ride with 1 Hz replanning.
 
-Runs `itt_planner.replay.replay` (as `itt-planner replay --speed max` does) on the demo
+Runs `itt_planner.replay.replay_ride`, exactly what `itt-planner replay --speed max` runs
+(deterministic planner: IPOPT's iteration cap is the budget, no wall-time cap), on the demo
 bag `bags/typical_verona-like.mcap` when it exists, else on a ride log simulated here
 from the full-course plan with the project's sensor model (GPS 1 Hz with 3 m noise,
 speed and power noise). Prints medians of >= 3 runs of:
@@ -30,13 +31,11 @@ sys.path.insert(0, str(ROOT))
 
 from itt_planner.conditions import Conditions  # noqa: E402
 from itt_planner.course_loader import load_course  # noqa: E402
-from itt_planner.engine import EngineSettings, PacingEngine  # noqa: E402
-from itt_planner.horizon import HorizonPlanner, HorizonSettings  # noqa: E402
 from itt_planner.ocp import OcpSettings  # noqa: E402
 from itt_planner.plan_cache import load_or_solve  # noqa: E402
-from itt_planner.replay import ReplaySettings, replay  # noqa: E402
-from itt_planner.rider import PRESETS  # noqa: E402
+from itt_planner.replay import replay_ride  # noqa: E402
 from itt_planner.ridelog import RideLogReader, RideLogWriter, RideMetadata  # noqa: E402
+from itt_planner.rider import PRESETS  # noqa: E402
 from itt_planner.simulate import sensor_samples  # noqa: E402
 
 COURSE = "verona-like"
@@ -79,10 +78,6 @@ def main() -> int:
                          cache_dir=ROOT / ".itt_cache")
     print(f"full-course plan ({args.model}): {time.perf_counter() - t0:.1f} s "
           f"(cached after the first run), finish {plan.finish_time_s / 60:.1f} min")
-    t0 = time.perf_counter()
-    planner = HorizonPlanner(course, rider, plan, conditions=conditions,
-                             settings=HorizonSettings(horizon_m=1000.0))
-    print(f"horizon planner built once: {time.perf_counter() - t0:.1f} s")
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp_dir = Path(tmp)
@@ -91,11 +86,9 @@ def main() -> int:
         print(f"input: {log_path.relative_to(ROOT) if log_path == DEMO_BAG else 'simulated'}")
 
         def run(replan_period_s: float) -> object:
-            engine = PacingEngine(course, rider, plan, conditions=conditions, planner=planner,
-                                  settings=EngineSettings(replan_period_s=replan_period_s,
-                                                          deterministic=True))
-            return replay(log_path, engine, output=tmp_dir / "advice.mcap",
-                          settings=ReplaySettings())
+            return replay_ride(log_path, COURSE, RIDER, output=tmp_dir / "advice.mcap",
+                               replan_period_s=replan_period_s, model=args.model,
+                               cache_dir=ROOT / ".itt_cache", progress=True)
 
         full_s, full_all, full = median_of(args.runs, lambda: run(1.0))
         est_s, est_all, est = median_of(args.runs, lambda: run(math.inf))

@@ -13,7 +13,7 @@ import re
 from functools import cache
 from importlib.resources import files
 
-from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
 PACKAGE = "itt_msgs"

@@ -171,14 +171,14 @@ def replay(log_path: str | Path, engine: Engine, *, output: str | Path | None = 
                 if raw.topic in own_topics:  # an earlier replay's output: recomputed here
                     replaced[raw.topic] = replaced.get(raw.topic, 0) + 1
                     continue
+                stamp = raw.log_time_ns / 1e9  # correctly rounded: whole seconds stay whole
+                loop.advance_to(stamp)  # the advice of earlier stamps goes out first
+                pacer.wait(stamp)
                 if writer is not None:
                     writer.write_raw(raw)
                 result.messages_in += 1
-                stamp = raw.log_time_ns / 1e9  # correctly rounded: whole seconds stay whole
                 first = stamp if first is None else first
                 last = stamp if last is None else max(last, stamp)
-                loop.advance_to(stamp)
-                pacer.wait(stamp)
                 loop.feed(value)
         except RideLogError as err:
             # Everything readable was replayed; finish the output and report the damage.

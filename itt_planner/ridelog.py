@@ -30,12 +30,12 @@ from mcap.writer import CompressionType, Writer
 
 from itt_msgs_py import DEFAULT_NAMESPACE, msgdef, serialize, topics, typestore
 from itt_msgs_py.convert import (
+    advice_to_msg,
     diagnostics_to_msg,
     from_time,
     msg_to_core,
     sample_to_msg,
     stamp_ns,
-    advice_to_msg,
     target_line_msg,
     target_power_msg,
 )

@@ -177,6 +177,6 @@ def test_wheel_contains_the_msg_files(tmp_path: Path) -> None:
     probe = ("import itt_msgs_py, sys; assert itt_msgs_py.__file__.startswith(sys.argv[1]); "
              "print(sorted(n for n in itt_msgs_py.typestore.types if n.startswith('itt_msgs/')))")
     out = subprocess.run([sys.executable, "-c", probe, str(site)], check=True, text=True,
-                         capture_output=True, cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(site)},
-                         timeout=120).stdout
+                         capture_output=True, cwd=tmp_path,
+                         env={**os.environ, "PYTHONPATH": str(site)}, timeout=120).stdout
     assert out.strip() == str(sorted(f"itt_msgs/msg/{p.stem}" for p in MSG_DIR.glob("*.msg")))

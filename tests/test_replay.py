@@ -19,8 +19,8 @@ from itt_planner.horizon import HorizonPlanner, HorizonSettings
 from itt_planner.ocp import OcpSettings
 from itt_planner.plan_cache import load_or_solve
 from itt_planner.replay import ReplaySettings, parse_speed, replay
-from itt_planner.rider import PRESETS
 from itt_planner.ridelog import RawRecord, RideLogReader, RideLogWriter, RideMetadata
+from itt_planner.rider import PRESETS
 from itt_planner.simulate import hairpin_course, sensor_samples
 
 T0 = 1_779_000_000.0
@@ -119,6 +119,8 @@ def test_output_holds_every_input_and_output_message(setup: dict, two_runs: list
     assert got["mcap_ros2"]["/itt/target_power"][k].power_w == ours[k].target_power_w
     line = rerun_value(got["rerun"]["/itt/target_line"][k])
     assert [p["pose"]["position"]["x"] for p in line["poses"]] == pytest.approx(ours[k].line_x_m)
+    times = [r.log_time_ns for r in RideLogReader(out).records()]
+    assert times == sorted(times)  # written in stamp order, advice after its inputs
     with out.open("rb") as f:
         meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
     assert meta["itt_ride"]["source"] == "simulated"

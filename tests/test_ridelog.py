@@ -83,7 +83,7 @@ def test_round_trip_and_metadata(ride_log: tuple[Path, list]) -> None:
     with path.open("rb") as f:
         mcap = make_reader(f)
         assert mcap.get_header().profile == "ros2"
-        for schema, channel, msg in mcap.iter_messages():
+        for schema, _channel, msg in mcap.iter_messages():
             assert msg.log_time == msg.publish_time  # = the header stamp
             assert schema.data.decode() == msgdef(schema.name)
         assert {m.name for m in mcap.iter_metadata()} == {"itt_ride"}
