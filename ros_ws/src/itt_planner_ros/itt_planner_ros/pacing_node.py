@@ -1,3 +1,17 @@
+# Copyright 2026 itt-planner team
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
 """The pacing node: ROS 2 topics in and out of `itt_planner.engine.PacingEngine`.
 
 A thin adapter. Subscriptions (sensor-data QoS) decode `gps/fix`, `speed` and `power`
@@ -22,15 +36,15 @@ not decode is counted (diagnostic `itt_planner/node`) and logged, never fatal.
 
 from __future__ import annotations
 
+from collections import Counter
+from dataclasses import dataclass
 import importlib
 import json
 import math
 import os
+from pathlib import Path
 import threading
 import time
-from collections import Counter
-from dataclasses import dataclass
-from pathlib import Path
 from types import ModuleType
 from typing import Any
 
@@ -46,8 +60,8 @@ from itt_msgs_py.convert import (
 )
 from itt_planner.advice import Advice, Diagnostic, Level
 
-RUNTIME_ENV = "ITT_RUNTIME"
-NODE_NAME = "itt_pacing"
+RUNTIME_ENV = 'ITT_RUNTIME'
+NODE_NAME = 'itt_pacing'
 
 
 def select_runtime(choice: str | None = None) -> tuple[str, ModuleType]:
@@ -57,31 +71,31 @@ def select_runtime(choice: str | None = None) -> tuple[str, ModuleType]:
         ValueError: a choice other than auto, rclpy, dds.
         ImportError: `rclpy` was forced and is not installed.
     """
-    choice = choice or os.environ.get(RUNTIME_ENV, "auto") or "auto"
-    if choice not in ("auto", "rclpy", "dds"):
-        raise ValueError(f"{RUNTIME_ENV}={choice!r}: expected auto, rclpy or dds")
-    if choice != "dds":
+    choice = choice or os.environ.get(RUNTIME_ENV, 'auto') or 'auto'
+    if choice not in ('auto', 'rclpy', 'dds'):
+        raise ValueError(f'{RUNTIME_ENV}={choice!r}: expected auto, rclpy or dds')
+    if choice != 'dds':
         try:
-            return "rclpy", importlib.import_module("rclpy")
+            return 'rclpy', importlib.import_module('rclpy')
         except ImportError:
-            if choice == "rclpy":
+            if choice == 'rclpy':
                 raise
-    return "dds", importlib.import_module("itt_planner.dds.rclpy")
+    return 'dds', importlib.import_module('itt_planner.dds.rclpy')
 
 
 RUNTIME, rclpy = select_runtime()
-_node = importlib.import_module(f"{rclpy.__name__}.node")
-_executors = importlib.import_module(f"{rclpy.__name__}.executors")
-_groups = importlib.import_module(f"{rclpy.__name__}.callback_groups")
-_qos = importlib.import_module(f"{rclpy.__name__}.qos")
-Parameter = importlib.import_module(f"{rclpy.__name__}.parameter").Parameter
+_node = importlib.import_module(f'{rclpy.__name__}.node')
+_executors = importlib.import_module(f'{rclpy.__name__}.executors')
+_groups = importlib.import_module(f'{rclpy.__name__}.callback_groups')
+_qos = importlib.import_module(f'{rclpy.__name__}.qos')
+Parameter = importlib.import_module(f'{rclpy.__name__}.parameter').Parameter
 Node = _node.Node
 ExternalShutdownException = _executors.ExternalShutdownException
 
 
 def message_type(msgtype: str) -> Any:
-    """The runtime's class of ROS type `pkg/msg/Name` (generated class on rclpy)."""
-    if RUNTIME == "rclpy":
+    """Return the runtime's class of ROS type `pkg/msg/Name` (generated on rclpy)."""
+    if RUNTIME == 'rclpy':
         from rosidl_runtime_py.utilities import get_message
 
         return get_message(msgtype)
@@ -89,7 +103,7 @@ def message_type(msgtype: str) -> Any:
 
 
 def qos_profile(qos: topics.QoS) -> Any:
-    """The runtime's QoSProfile of a topic's plain QoS."""
+    """Return the runtime's QoSProfile of a topic's plain QoS."""
     return _qos.QoSProfile(
         depth=qos.depth,
         reliability=(_qos.ReliabilityPolicy.BEST_EFFORT
@@ -124,22 +138,22 @@ class NodeParams:
         state_period_s: wall time between two saves of `state_file`.
     """
 
-    course: str = "verona-like"
-    rider: str = "paper"
-    plan: str = ""
-    plan_cache: str = ".itt_cache"
+    course: str = 'verona-like'
+    rider: str = 'paper'
+    plan: str = ''
+    plan_cache: str = '.itt_cache'
     horizon_m: float = 1000.0
     replan_period_s: float = 1.0
     tick_period_s: float = 0.1
     diagnostics_period_s: float = 1.0
-    rerun_sink: str = ""
-    output_log: str = ""
-    state_file: str = ""
+    rerun_sink: str = ''
+    output_log: str = ''
+    state_file: str = ''
     state_period_s: float = 2.0
 
 
 def build_engine(params: NodeParams) -> Any:
-    """The pacing engine of the node's course, rider and full-course plan.
+    """Build the pacing engine of the node's course, rider and full-course plan.
 
     Raises:
         IttError: the course, rider or plan cannot be had.
@@ -159,7 +173,7 @@ def build_engine(params: NodeParams) -> Any:
         from itt_planner.ocp import OcpSettings
         from itt_planner.plan_cache import load_or_solve
 
-        plan = load_or_solve(course, rider, conditions, OcpSettings(), "3d",
+        plan = load_or_solve(course, rider, conditions, OcpSettings(), '3d',
                              cache_dir=Path(params.plan_cache))
     settings = EngineSettings(replan_period_s=params.replan_period_s,
                               horizon_m=params.horizon_m)
@@ -168,14 +182,14 @@ def build_engine(params: NodeParams) -> Any:
 
 def save_state(path: Path, engine: Any, course: str) -> None:
     """Write the engine snapshot atomically (a kill mid-write leaves the old file)."""
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps({"course": course, "engine": engine.snapshot()}),
-                   encoding="utf-8")
+    tmp = path.with_name(path.name + '.tmp')
+    tmp.write_text(json.dumps({'course': course, 'engine': engine.snapshot()}),
+                   encoding='utf-8')
     os.replace(tmp, path)
 
 
 def load_state(path: Path, course: str) -> dict[str, Any] | None:
-    """The engine snapshot saved for `course`, None if there is none.
+    """Return the engine snapshot saved for `course`, None if there is none.
 
     Raises:
         ValueError: the file exists but is not a snapshot of this course.
@@ -183,12 +197,12 @@ def load_state(path: Path, course: str) -> dict[str, Any] | None:
     if not path.is_file():
         return None
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        doc = json.loads(path.read_text(encoding='utf-8'))
     except (OSError, json.JSONDecodeError) as err:
-        raise ValueError(f"{path}: unreadable state file ({err})") from None
-    if not isinstance(doc, dict) or doc.get("course") != course or "engine" not in doc:
-        raise ValueError(f"{path}: not a saved state of course {course!r}")
-    return doc["engine"]
+        raise ValueError(f'{path}: unreadable state file ({err})') from None
+    if not isinstance(doc, dict) or doc.get('course') != course or 'engine' not in doc:
+        raise ValueError(f'{path}: not a saved state of course {course!r}')
+    return doc['engine']
 
 
 class PacingNode(Node):
@@ -204,6 +218,7 @@ class PacingNode(Node):
     def __init__(self, *, namespace: str = topics.DEFAULT_NAMESPACE,
                  parameter_overrides: list[Any] | None = None, engine: Any = None,
                  context: Any = None) -> None:
+        """Declare the parameters, build the engine, create the topics and the timer."""
         super().__init__(NODE_NAME, namespace=namespace, context=context,
                          parameter_overrides=parameter_overrides or [])
         self.params = self._declare_parameters()
@@ -237,8 +252,8 @@ class PacingNode(Node):
             self.params.tick_period_s, self._tick,
             callback_group=_groups.MutuallyExclusiveCallbackGroup())
         self.get_logger().info(
-            f"ready on {self.get_namespace()} ({RUNTIME}): course {self.params.course}, "
-            f"rider {self.params.rider}, replan every {self.params.replan_period_s} s")
+            f'ready on {self.get_namespace()} ({RUNTIME}): course {self.params.course}, '
+            f'rider {self.params.rider}, replan every {self.params.replan_period_s} s')
 
     def _declare_parameters(self) -> NodeParams:
         defaults = NodeParams()
@@ -255,8 +270,8 @@ class PacingNode(Node):
             except Exception as err:  # noqa: BLE001  (a corrupt payload raises many types)
                 self.malformed[topic.key] += 1
                 self.get_logger().warning(
-                    f"malformed {topic.msgtype} on {topic.key} dropped "
-                    f"({type(err).__name__}: {err}); {self.malformed[topic.key]} so far",
+                    f'malformed {topic.msgtype} on {topic.key} dropped '
+                    f'({type(err).__name__}: {err}); {self.malformed[topic.key]} so far',
                     throttle_duration_sec=5.0)
                 return
             feed(sample)  # the engine counts and logs samples it rejects; never raises
@@ -264,16 +279,16 @@ class PacingNode(Node):
                 with self._io_lock:
                     self._log_writer.write_sample(sample)
             if self._recorder is not None:
-                log = {"gps/fix": self._recorder.log_gps, "speed": self._recorder.log_speed,
-                       "power": self._recorder.log_power}[topic.key]
+                log = {'gps/fix': self._recorder.log_gps, 'speed': self._recorder.log_speed,
+                       'power': self._recorder.log_power}[topic.key]
                 log(sample)
         return callback
 
     # --- the replan ------------------------------------------------------------------
 
     def now_s(self) -> float | None:
-        """The engine's clock: ROS time under use_sim_time, else the newest input stamp."""
-        if self.get_parameter("use_sim_time").value:
+        """Return the engine's clock: ROS time under use_sim_time, else the newest stamp."""
+        if self.get_parameter('use_sim_time').value:
             ns = self.get_clock().now().nanoseconds
             return ns * 1e-9 if ns > 0 else None
         state = self.engine.state
@@ -286,8 +301,8 @@ class PacingNode(Node):
                 advice = self.engine.update(now)
             except Exception as err:  # noqa: BLE001  (the engine should not raise; a live
                 # node must outlive it if it does)
-                self.malformed["engine_exception"] += 1
-                self.get_logger().error(f"engine.update raised {type(err).__name__}: {err}",
+                self.malformed['engine_exception'] += 1
+                self.get_logger().error(f'engine.update raised {type(err).__name__}: {err}',
                                         throttle_duration_sec=5.0)
                 advice = None
             if advice is not None:
@@ -302,9 +317,9 @@ class PacingNode(Node):
 
     def _publish_advice(self, advice: Advice) -> None:
         self.advice_count += 1
-        self._pub["advice"].publish(serialize(advice_to_msg(advice)))
-        self._pub["target_power"].publish(serialize(target_power_msg(advice)))
-        self._pub["target_line"].publish(serialize(target_line_msg(advice)))
+        self._pub['advice'].publish(serialize(advice_to_msg(advice)))
+        self._pub['target_power'].publish(serialize(target_power_msg(advice)))
+        self._pub['target_line'].publish(serialize(target_line_msg(advice)))
         if self._log_writer is not None:
             with self._io_lock:
                 self._log_writer.write_advice(advice)
@@ -312,18 +327,18 @@ class PacingNode(Node):
             self._recorder.log_advice(advice)
 
     def node_diagnostic(self, stamp_s: float) -> Diagnostic:
-        """The node's own health: malformed payloads, advice published."""
+        """Return the node's own health: malformed payloads, advice published."""
         bad = sum(self.malformed.values())
         return Diagnostic(
-            stamp_s, "itt_planner/node", Level.WARN if bad else Level.OK,
-            f"{bad} malformed payload(s) dropped" if bad else "ok",
-            {"runtime": RUNTIME, "advice_published": str(self.advice_count),
-             **{f"malformed/{k}": str(v) for k, v in sorted(self.malformed.items())}})
+            stamp_s, 'itt_planner/node', Level.WARN if bad else Level.OK,
+            f'{bad} malformed payload(s) dropped' if bad else 'ok',
+            {'runtime': RUNTIME, 'advice_published': str(self.advice_count),
+             **{f'malformed/{k}': str(v) for k, v in sorted(self.malformed.items())}})
 
     def _publish_diagnostics(self, stamp_s: float) -> None:
         self._last_diag_stamp = stamp_s
         diags = [*self.engine.diagnostics(stamp_s), self.node_diagnostic(stamp_s)]
-        self._pub["/diagnostics"].publish(serialize(diagnostics_to_msg(diags, stamp_s)))
+        self._pub['/diagnostics'].publish(serialize(diagnostics_to_msg(diags, stamp_s)))
         if self._log_writer is not None:
             with self._io_lock:
                 self._log_writer.write_diagnostics(diags, stamp_s)
@@ -338,16 +353,16 @@ class PacingNode(Node):
         try:
             snap = load_state(self._state_path, self.params.course)
         except ValueError as err:
-            self.get_logger().warning(f"{err}: starting fresh")
+            self.get_logger().warning(f'{err}: starting fresh')
             return
         if snap is None:
             return
         try:
             self.engine.restore(snap)
         except (KeyError, TypeError, ValueError) as err:
-            self.get_logger().warning(f"{self._state_path}: cannot restore ({err}); fresh")
+            self.get_logger().warning(f'{self._state_path}: cannot restore ({err}); fresh')
             return
-        w_prime = snap.get("estimator", {}).get("w_prime_j", math.nan)
+        w_prime = snap.get('estimator', {}).get('w_prime_j', math.nan)
         self.get_logger().info(f"resumed from {self._state_path}: W' {w_prime:.0f} J")
 
     def save_state(self) -> None:
@@ -358,7 +373,7 @@ class PacingNode(Node):
         try:
             save_state(self._state_path, self.engine, self.params.course)
         except OSError as err:
-            self.get_logger().error(f"cannot save state to {self._state_path}: {err}",
+            self.get_logger().error(f'cannot save state to {self._state_path}: {err}',
                                     throttle_duration_sec=30.0)
 
     def _open_output_log(self) -> Any:
@@ -367,7 +382,7 @@ class PacingNode(Node):
         from itt_planner.ridelog import RideLogWriter, RideMetadata
 
         return RideLogWriter(self.params.output_log, namespace=self.get_namespace(),
-                             metadata=RideMetadata(source="itt_pacing node",
+                             metadata=RideMetadata(source='itt_pacing node',
                                                    rider=self.params.rider))
 
     def _open_rerun(self) -> Any:
@@ -416,8 +431,8 @@ def run(args: list[str] | None = None, *, namespace: str | None = None,
         rclpy.try_shutdown()
     if node is None:
         return {}
-    return {"runtime": RUNTIME, "namespace": node.get_namespace(),
-            "advice_published": node.advice_count, "malformed": dict(node.malformed)}
+    return {'runtime': RUNTIME, 'namespace': node.get_namespace(),
+            'advice_published': node.advice_count, 'malformed': dict(node.malformed)}
 
 
 def main(args: list[str] | None = None) -> None:
@@ -425,5 +440,5 @@ def main(args: list[str] | None = None) -> None:
     run(args)
 
 
-if __name__ == "__main__":
+if __name__ == '__main__':
     main()

@@ -1,5 +1,18 @@
 # Copyright 2026 itt-planner team
-# SPDX-License-Identifier: Apache-2.0
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""ament_pep257 with the Google docstring convention the project writes."""
 
 from ament_pep257.main import main
 import pytest
@@ -8,5 +21,6 @@ import pytest
 @pytest.mark.linter
 @pytest.mark.pep257
 def test_pep257():
-    rc = main(argv=['.', 'test'])
+    """Check the package's docstrings."""
+    rc = main(argv=['--convention', 'google', '.', 'test'])
     assert rc == 0, 'Found code style errors / warnings'
