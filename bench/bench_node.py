@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import subprocess
 import sys
 import tempfile
 import threading
@@ -31,13 +30,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # the test ride of the DDS tests (dds_support)
 
-from dds_support import RIDE_T0_S, Proc, Ride, cli, dds_env, make_ride  # noqa: E402
+from dds_support import RIDE_T0_S, Proc, Ride, cli, dds_env, make_ride
 
-from itt_msgs_py import deserialize, serialize, topics  # noqa: E402
-from itt_msgs_py.convert import from_time, sample_to_msg  # noqa: E402
-from itt_planner.dds.context import Context  # noqa: E402
-from itt_planner.dds.endpoints import RawReader, RawWriter  # noqa: E402
-from itt_planner.ridelog import read_ride_log  # noqa: E402
+from itt_msgs_py import deserialize, serialize, topics
+from itt_msgs_py.convert import from_time, sample_to_msg
+from itt_planner.dds.context import Context
+from itt_planner.dds.endpoints import RawReader, RawWriter
+from itt_planner.ridelog import read_ride_log
 
 FIX = "sensor_msgs/msg/NavSatFix"
 

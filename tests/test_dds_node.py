@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from dds_support import RIDE_T0_S, Proc, Ride, cached_ride, cli, dds_env, random_domain
+from mcap_readers import rosbags_messages
 
 from itt_msgs_py import serialize, topics, typestore
 from itt_msgs_py.convert import msg_to_advice, msg_to_diagnostics, sample_to_msg
@@ -23,9 +25,6 @@ from itt_planner.dds.rclpy.parameter import Parameter
 from itt_planner.dds.rclpy.qos import QoSProfile, ReliabilityPolicy
 from itt_planner.ridelog import read_ride_log
 from itt_planner.samples import GpsFix
-
-from dds_support import RIDE_T0_S, Proc, Ride, cached_ride, cli, dds_env, random_domain
-from mcap_readers import rosbags_messages
 
 
 @pytest.fixture(scope="module")

@@ -17,6 +17,7 @@ from cyclonedds.core import DDSException
 from cyclonedds.pub import DataWriter
 from cyclonedds.qos import Policy
 from cyclonedds.sub import DataReader
+from dds_support import RIDE_T0_S, random_domain
 
 from itt_msgs_py import TOPICS, serialize, topics, typestore
 from itt_msgs_py.convert import (
@@ -42,8 +43,6 @@ from itt_planner.dds.wire import (
 )
 from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.state import RiderState
-
-from dds_support import RIDE_T0_S, random_domain
 
 
 def _advice() -> Advice:

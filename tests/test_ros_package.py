@@ -15,7 +15,6 @@ from pathlib import Path
 import pytest
 import yaml
 from catkin_pkg.package import parse_package
-
 from dds_support import Proc, Ride, cached_ride, dds_env
 
 ROOT = Path(__file__).resolve().parents[1]

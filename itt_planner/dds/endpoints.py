@@ -73,8 +73,8 @@ class RawWriter:
         Raises:
             DDSException: Cyclone refused it (e.g. bytes that are not this type's CDR).
         """
-        ret = (ddspy_write(self.writer._ref, data) if timestamp_ns is None  # noqa: SLF001
-               else ddspy_write_ts(self.writer._ref, data, timestamp_ns))  # noqa: SLF001
+        ret = (ddspy_write(self.writer._ref, data) if timestamp_ns is None
+               else ddspy_write_ts(self.writer._ref, data, timestamp_ns))
         if ret < 0:
             raise DDSException(ret, f"writing {self.msgtype} on {self.ros_name}")
 
@@ -106,7 +106,7 @@ class RawReader:
         Raises:
             DDSException: the reader is gone.
         """
-        ret = ddspy_take(self.reader._ref, _ANY_STATE, limit)  # noqa: SLF001
+        ret = ddspy_take(self.reader._ref, _ANY_STATE, limit)
         if isinstance(ret, int):
             raise DDSException(ret, f"taking {self.msgtype} from {self.ros_name}")
         return [Received(bytes(data), info.source_timestamp) for data, info in ret

@@ -12,7 +12,7 @@ class Duration:
     nanoseconds: int
 
     def __init__(self, *, seconds: float = 0.0, nanoseconds: int = 0) -> None:
-        object.__setattr__(self, "nanoseconds", int(round(seconds * 1e9)) + int(nanoseconds))
+        object.__setattr__(self, "nanoseconds", round(seconds * 1e9) + int(nanoseconds))
 
     def to_msg(self) -> object:
         """`builtin_interfaces/Duration`."""

@@ -51,7 +51,7 @@ class Executor:
         if node in self._nodes:
             return False
         self._nodes.append(node)
-        node._add_waker(self.wake)  # noqa: SLF001
+        node._add_waker(self.wake)
         self.wake()
         return True
 
@@ -59,7 +59,7 @@ class Executor:
         """Stop spinning `node`."""
         if node in self._nodes:
             self._nodes.remove(node)
-            node._remove_waker(self.wake)  # noqa: SLF001
+            node._remove_waker(self.wake)
 
     def get_nodes(self) -> list[Node]:
         """The nodes being spun."""
@@ -97,7 +97,7 @@ class Executor:
     def _execute(self, entity: Entity) -> None:
         try:
             entity.execute()
-        except BaseException as err:  # re-raised from spin(), as rclpy does
+        except BaseException as err:  # noqa: BLE001  (re-raised from spin(), as rclpy does)
             with self._cv:
                 self._errors.append(err)
         finally:

@@ -61,7 +61,7 @@ def _caller_key() -> str:
     """File and line of the log call: throttling is per call site, as in rclpy."""
     import sys
 
-    frame = sys._getframe(3)  # noqa: SLF001  (_caller_key <- _emit <- warning <- caller)
+    frame = sys._getframe(3)
     return f"{frame.f_code.co_filename}:{frame.f_lineno}"
 
 

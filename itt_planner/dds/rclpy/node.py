@@ -97,7 +97,7 @@ class Subscription:
 
     def _on_data(self) -> None:
         self._ready.set()
-        self._node._wake()  # noqa: SLF001
+        self._node._wake()
 
     def is_ready(self) -> bool:
         """Whether data may be waiting."""
@@ -117,7 +117,7 @@ class Subscription:
             try:
                 msg = typestore.deserialize_cdr(sample.data, self._msgtype)
             except Exception as err:  # noqa: BLE001  (a corrupt payload raises many types)
-                self._node._count_undecodable(self.topic_name, err)  # noqa: SLF001
+                self._node._count_undecodable(self.topic_name, err)
                 continue
             self.callback(msg)
 
@@ -151,7 +151,7 @@ class Timer:
         """Restart the period from now."""
         self._canceled = False
         self._next_ns = self.clock.now().nanoseconds + self.timer_period_ns
-        self._node._wake()  # noqa: SLF001
+        self._node._wake()
 
     def time_until_next_call(self) -> int | None:
         """Nanoseconds of clock time to the next call (<= 0: due), None when cancelled."""
@@ -343,7 +343,7 @@ class Node:
         return self._logger
 
     def _enable_sim_time(self) -> None:
-        self._clock._set_ros_time_is_active(True)  # noqa: SLF001
+        self._clock._set_ros_time_is_active(True)
         clock_type = typestore.types["rosgraph_msgs/msg/Clock"]
         self._clock_sub = self.create_subscription(
             clock_type, CLOCK_TOPIC,
@@ -391,7 +391,7 @@ class Node:
         """
         if not timer_period_sec > 0:
             raise ValueError(f"timer period must be > 0 s, got {timer_period_sec}")
-        timer = Timer(self, int(round(timer_period_sec * 1e9)), callback,
+        timer = Timer(self, round(timer_period_sec * 1e9), callback,
                       callback_group or self.default_callback_group, clock or self._clock)
         self.timers.append(timer)
         self._wake()

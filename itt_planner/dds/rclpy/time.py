@@ -18,7 +18,7 @@ class Time:
 
     def __init__(self, *, seconds: float = 0.0, nanoseconds: int = 0,
                  clock_type: ClockType = ClockType.SYSTEM_TIME) -> None:
-        object.__setattr__(self, "nanoseconds", int(round(seconds * 1e9)) + int(nanoseconds))
+        object.__setattr__(self, "nanoseconds", round(seconds * 1e9) + int(nanoseconds))
         object.__setattr__(self, "clock_type", clock_type)
 
     def seconds_nanoseconds(self) -> tuple[int, int]:
