@@ -38,8 +38,14 @@ REPLAY_METADATA = "itt_replay"
 NO_WALL_TIME_LIMIT_S = 1e20
 
 
+class _EngineSettings(Protocol):
+    replan_period_s: float
+
+
 class Engine(Protocol):
     """What the replay needs of `itt_planner.engine.PacingEngine`."""
+
+    settings: _EngineSettings
 
     def on_gps(self, fix: GpsFix) -> None: ...
     def on_speed(self, sample: WheelSpeed) -> None: ...
@@ -59,7 +65,8 @@ class ReplaySettings:
     Attributes:
         speed: pace as `speed` x real time by the stamps (1.0 = real time); None = as
             fast as possible.
-        diagnostics_period_s: stamp time between `/diagnostics` messages.
+        diagnostics_period_s: stamp time between `/diagnostics` messages (the replay's
+            timer ticks at this period or the engine's replan period, the shorter).
         deterministic: build the engine in its deterministic mode (no wall-clock values
             in advice and diagnostics, overruns not judged by the wall clock), so two
             replays give byte-identical output; False behaves as live, timing included.
@@ -204,10 +211,12 @@ def replay(log_path: str | Path, engine: Engine, *, output: str | Path | None = 
 
 
 class _Loop:
-    """Feeds values to the engine and runs its clock: one `update` per distinct stamp.
+    """Feeds values to the engine and runs its timer on the stamp clock.
 
-    The engine's update for stamp t runs when the log moves past t, so every message
-    stamped t (GPS, speed and power of one 1 Hz record) is in before it plans.
+    Like the node's timer under `use_sim_time`, the timer fires every `period_s` of stamp
+    time from the first message (through gaps in the log too); the tick at T runs once
+    the log has moved past T, so every message stamped up to T is in before the engine
+    plans. The engine decides at each tick whether a replan is due.
     """
 
     def __init__(self, engine: Engine, writer: RideLogWriter | None,
@@ -218,19 +227,31 @@ class _Loop:
         self.recorder = recorder
         self.settings = settings
         self.result = result
-        self.pending: float | None = None
-        self.last_diagnostics: float = -math.inf
+        self.period_s = min(engine.settings.replan_period_s, settings.diagnostics_period_s)
+        self.first_tick: float | None = None
+        self.ticks = 0
+        self.last_stamp = -math.inf
+        self.last_diagnostics = -math.inf
+
+    def _next_tick(self) -> float:
+        assert self.first_tick is not None
+        # Multiplied, not accumulated: no drift over a long ride.
+        return self.first_tick + self.ticks * self.period_s
 
     def advance_to(self, stamp_s: float) -> None:
-        if self.pending is not None and stamp_s > self.pending:
-            self.tick(self.pending)
-        if self.pending is None or stamp_s > self.pending:
-            self.pending = stamp_s
+        if self.first_tick is None:
+            self.first_tick = stamp_s
+        while self._next_tick() < stamp_s:
+            self.tick(self._next_tick())
+            self.ticks += 1
+        self.last_stamp = max(self.last_stamp, stamp_s)
 
     def finish(self) -> None:
-        if self.pending is not None:
-            self.tick(self.pending)
-            self.pending = None
+        if self.first_tick is None:
+            return
+        while self._next_tick() <= self.last_stamp:
+            self.tick(self._next_tick())
+            self.ticks += 1
 
     def feed(self, value: object) -> None:
         engine, recorder = self.engine, self.recorder
