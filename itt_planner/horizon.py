@@ -1,31 +1,49 @@
 """The receding-horizon OCP: the 3D model over the next `H` metres from the rider's state.
 
 `HorizonPlanner` builds ONE NLP (multiple shooting, `transcription.transcribe` with
-`soft=True`) with a fixed number of intervals and an IPOPT solver over it, once. A replan
-(`solve(state)`) only samples the road data for the window `[s, s + H]` on a mesh of that
-fixed node count (nodes placed with the density of `mesh.target_spacing`, so a hairpin
-in the window gets ~1 m intervals), sets the bounds and parameters, and calls the solver.
+`soft=True`, B's compiled per-stage derivative kernels) with a fixed number of intervals
+and an IPOPT solver over it, once. A replan (`solve(state)`) only places that fixed
+number of nodes over the window `[s, s + H]`, samples the road data there, sets bounds
+and parameters, and calls the solver.
 
 Design choices:
 
+- Steady-lean horizon model (`model.build_3d_steady_lean`). The full-course plan keeps
+  the full roll dynamics E4-E5; the horizon replaces them by their equilibrium, the
+  steady turn `tan(phi) = -a_y/g` of E5. Why: the roll mode is an unstable pendulum
+  with a ~0.45 s time constant, far below the ~1 s replan period and far below what
+  the rider can be advised on; it only sets how fast the bike tips into a lean, which
+  the steering-rate penalty and the rate bounds already keep physical. With the roll
+  mode in the horizon, shooting intervals had to stay <= 4 m (longer ones span ~1 s of
+  the instability and IPOPT needed huge Hessian regularisation), so a 1 km window
+  needed >= 250 intervals and most replans on verona-like hit the caps (bench/
+  results_horizon.md). Without it, 5-20 m intervals are well conditioned. What the
+  pacing depends on stays: the lean is still tied to the lateral acceleration, C16
+  still bounds grip (hence the lean, `phi_max ~ atan(mu_y)`), and C15 still gates
+  pedalling on that lean. Lost: the transient of initiating a lean (a few metres at
+  corner entry), which the plan's solution already contains where it matters.
+- Non-uniform window mesh with a fixed node count: nodes follow the full-course mesh
+  density (`mesh.target_spacing`: fine where the road bends or the grade changes) and
+  are also fine right ahead of the rider (what is advised now) and coarse towards the
+  horizon end; a hairpin in the window gets ~2 m intervals, a straight up to `h_max_m`.
 - Softened path constraints: the friction ellipse (C16) and the pedalling gate (C15)
   get penalised slacks, so a measured state that already violates them (GPS noise,
   a rider off the plan) never makes the NLP infeasible. Road edges (C11), W' >= 0 (C12)
-  and the actuator bounds stay hard: the initial state is clipped into them.
+  and the actuator bounds stay hard: the initial state is clipped into them, and since
+  braking is always allowed (`W_n = -1` costs no W'), a feasible point always exists.
 - Terminal treatment: the rest of the course is represented by the full-course plan.
   The W' the rider may arrive with at the horizon end is the plan's W' there, shifted
   by the rider's current deviation from the plan scaled by the share of the remaining
   distance that lies beyond the horizon - a deficit (or surplus) is paid back (spent)
   evenly over what is left of the course, rather than within the next kilometre. It is
-  a soft lower bound with a steep penalty (~45x a realistic W' price), so W' is never
-  overspent for a seemingly faster horizon. The speed at the horizon end is pulled to
-  the plan's speed there (quadratic, `v_weight`), because kinetic energy carried over
-  the horizon end is worth time later; without it the horizon would coast to a crawl
-  at its end. The W' price alone (without the bound) was rejected: a linear price
-  cannot stop the solver from emptying W' whenever the horizon gains more than it.
+  a soft lower bound (slack with a steep penalty, ~45x a realistic W' price), so a W'
+  deficit never makes the NLP infeasible, yet W' is not overspent for a seemingly
+  faster horizon. The speed at the horizon end is pulled to the plan's speed there
+  (quadratic, `v_weight`), because kinetic energy carried over the horizon end is worth
+  time later; without it the horizon would coast to a crawl at its end.
 - Warm start from the previous successful solution shifted in `s` (interpolated onto
-  the new nodes, the plan beyond its end); primal only - the prototype found
-  multiplier warm starts worse. A failed solution is never reused as a start.
+  the new nodes, the plan beyond its end), re-anchored at the measured state; measured
+  options in bench/results_horizon.md. A failed solution is never reused as a start.
 - Hard caps: `max_iter` and `max_wall_time_s`; a failure returns `success=False` with
   IPOPT's status and never raises.
 """
@@ -43,8 +61,8 @@ import numpy as np
 from itt_planner.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.course import Course
 from itt_planner.mesh import road_data, target_spacing
-from itt_planner.model import ModelParams, build_3d
-from itt_planner.ocp import V_MIN_MPS, OcpSettings, bounds
+from itt_planner.model import ModelParams, build_3d_steady_lean, steady_lean_rad
+from itt_planner.ocp import U_DELTA_MAX, U_W_MAX, V_MIN_MPS
 from itt_planner.plan import Plan
 from itt_planner.rider import Rider
 from itt_planner.state import RiderState
@@ -52,11 +70,18 @@ from itt_planner.transcription import transcribe
 
 log = logging.getLogger(__name__)
 
-#: The start point (plan or shifted previous solution) is close to the optimum: begin
-#: with a small barrier parameter and keep the start inside the bounds it already
-#: satisfies, instead of IPOPT's defaults for a cold start far away.
-_WARM_IPOPT = {"mu_init": 1e-3, "warm_start_init_point": "yes", "warm_start_bound_push": 1e-6,
-               "warm_start_mult_bound_push": 1e-6, "mu_strategy": "monotone"}
+#: Replans with a previous solution start next to the optimum: a small initial barrier
+#: and a start kept inside the bounds it already satisfies. Measured on verona-like
+#: (bench/results_horizon.md): median ~20 iterations instead of ~50 with IPOPT's defaults.
+_WARM_IPOPT = {"mu_init": 1e-4, "mu_strategy": "monotone", "warm_start_init_point": "yes",
+               "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6,
+               "warm_start_slack_bound_push": 1e-6}
+#: The first replan (or one after a failure) starts from the full-course plan, which was
+#: solved with the roll dynamics: a larger barrier lets IPOPT move away from it (with the
+#: warm settings 1 of 12 verona-like windows failed, with these none).
+_COLD_IPOPT = {"mu_init": 1e-2, "mu_strategy": "monotone"}
+#: Loose bound on the relative heading (rad), as in the full-course OCP.
+_ALPHA_MAX_RAD = 1.0
 
 
 @dataclass(frozen=True)
@@ -66,36 +91,54 @@ class HorizonSettings:
     Attributes:
         horizon_m: length of the window ahead of the rider.
         n_intervals: fixed number of shooting intervals over the window.
-        substeps: RK4 substeps per interval (intervals stay near 5 m on straights).
-        h_min_m, h_max_m: mesh density bounds (as in the full-course mesh).
+        substeps: RK4 substeps per interval.
+        h_min_m, h_max_m: finest and coarsest window intervals (before the fixed node
+            count rescales them).
+        near_grade: how fast the spacing may grow with the distance ahead of the
+            rider (m per m), so the first intervals (the advice now) are fine.
         slack_weight: penalty per unit of path-constraint slack (s).
         v_weight: terminal speed penalty (s per (m/s)^2).
         max_iter, max_wall_time_s: hard budget of one replan.
         tol: IPOPT tolerance (a replan needs less accuracy than the plan).
+        acceptable_iter: IPOPT stops after this many consecutive iterates within
+            10 x `tol` ("Solved_To_Acceptable_Level", counted as success): the advice
+            does not change measurably in the last digits, the latency does.
+        eps_wn, sharpness_w: smoothing widths of max(W_n, 0) and of the E9 switch at
+            critical power (model.py) in the horizon model.
+        w_delta, w_power: objective weights w_1, w_2 (model.md section 5).
+        warm_multipliers: also shift the previous multipliers (measured neutral).
         margin_m: distance kept from each road edge (C11).
     """
 
     horizon_m: float = 1000.0
-    n_intervals: int = 200
+    n_intervals: int = 60
     substeps: int = 1
-    h_min_m: float = 1.0
-    h_max_m: float = 4.0
+    h_min_m: float = 2.5
+    h_max_m: float = 30.0
+    near_grade: float = 0.1
     slack_weight: float = 100.0
     v_weight: float = 1.0
     max_iter: int = 60
     max_wall_time_s: float = 0.8
-    tol: float = 1e-4
+    tol: float = 1e-3
+    acceptable_iter: int = 2
     margin_m: float = 0.5
+    eps_wn: float = 1e-3
+    sharpness_w: float = 5.0
+    w_delta: float = 0.01
+    w_power: float = 0.01
+    warm_multipliers: bool = False
 
 
 @dataclass(frozen=True, eq=False)
 class HorizonSolution:
     """One replan: profiles over the window (arc length `s_m` on the course, SI units).
 
-    `t_s` starts at 0 at the rider's position. `predicted_finish_s` is the elapsed time
-    from the ride start at the finish line: elapsed now + horizon time + the plan's time
-    from the horizon end to the finish. `w_prime_finish_j` likewise adds the plan's W'
-    change over the rest of the course.
+    `t_s` starts at 0 at the rider's position. `phi_rad` is the steady lean of the
+    horizon model. `predicted_finish_s` is the elapsed time from the ride start at the
+    finish line: elapsed now + horizon time + the plan's time from the horizon end to
+    the finish. `w_prime_finish_j` likewise adds the plan's W' change over the rest of
+    the course.
     """
 
     s_m: np.ndarray
@@ -126,70 +169,83 @@ class HorizonPlanner:
                  settings: HorizonSettings = HorizonSettings()) -> None:
         self.course, self.rider, self.plan = course, rider, plan
         self.conditions, self.settings = conditions, settings
-        self._model = build_3d()
+        self._model = build_3d_steady_lean(eps_wn=settings.eps_wn,
+                                           sharpness_w=settings.sharpness_w)
         self._tr = transcribe(self._model, settings.n_intervals, substeps=settings.substeps,
                               soft=True, slack_weight=settings.slack_weight)
         opts = {**self._tr.derivatives,
                 "ipopt.max_iter": settings.max_iter, "ipopt.max_wall_time": settings.max_wall_time_s,
                 "ipopt.tol": settings.tol, "ipopt.acceptable_tol": 10 * settings.tol,
+                "ipopt.acceptable_iter": settings.acceptable_iter,
                 "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
                 "ipopt.linear_solver": "mumps",
-                "error_on_fail": False, "no_nlp_grad": True, "calc_lam_p": False,
-                **{f"ipopt.{k}": v for k, v in _WARM_IPOPT.items()}}
-        self._solver = ca.nlpsol("horizon", "ipopt", self._tr.nlp, opts)
-        self._par = ModelParams(rider, conditions).vector()
-        # Cumulative node density along the course: equal steps of it give the window mesh.
-        density = 1.0 / target_spacing(course, settings.h_min_m, settings.h_max_m)
-        self._density_cum = np.concatenate([[0.0], np.cumsum(
-            0.5 * (density[1:] + density[:-1]) * np.diff(course.s_m))])
-        self._ocp_settings = OcpSettings(margin_m=settings.margin_m)
+                "error_on_fail": False, "no_nlp_grad": True, "calc_lam_p": False}
+        # Two solvers over the same NLP and derivative Functions (building is cheap).
+        self._solvers = {
+            kind: ca.nlpsol(f"horizon_{kind}", "ipopt", self._tr.nlp,
+                            {**opts, **{f"ipopt.{k}": v for k, v in ipopt.items()}})
+            for kind, ipopt in (("warm", _WARM_IPOPT), ("cold", _COLD_IPOPT))}
+        self._par = ModelParams(rider, conditions, settings.w_delta, settings.w_power).vector()
+        self._spacing = target_spacing(course, settings.h_min_m, settings.h_max_m)
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._previous_mult: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     # ---- window ---------------------------------------------------------------------------
     def window(self, s_m: float) -> np.ndarray:
-        """The fixed-count node positions of the window starting at `s_m`."""
-        end = min(s_m + self.settings.horizon_m, self.course.length_m)
+        """The fixed-count node positions of the window starting at `s_m`.
+
+        Equal steps of the cumulative node density `1/h`, with `h` the course's mesh
+        spacing capped by `h_min_m + near_grade * (distance ahead)`.
+        """
+        st, c = self.settings, self.course
+        end = min(s_m + st.horizon_m, c.length_m)
         s_m = min(s_m, end - 1.0)
-        c0, c1 = np.interp([s_m, end], self.course.s_m, self._density_cum)
-        # Blend with a uniform spacing so straights are not starved of nodes entirely.
-        c = np.linspace(0.0, 1.0, self.settings.n_intervals + 1)
-        s_dense = np.interp(c0 + c * (c1 - c0), self._density_cum, self.course.s_m)
-        nodes = 0.7 * s_dense + 0.3 * (s_m + c * (end - s_m))
+        grid = np.concatenate([[s_m], c.s_m[(c.s_m > s_m) & (c.s_m < end)], [end]])
+        h = np.minimum(np.interp(grid, c.s_m, self._spacing),
+                       st.h_min_m + st.near_grade * (grid - s_m))
+        dens = 1.0 / h
+        cum = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * np.diff(grid))])
+        nodes = np.interp(np.linspace(0.0, cum[-1], st.n_intervals + 1), cum, grid)
         nodes[0], nodes[-1] = s_m, end
         return nodes
 
     def initial_state(self, state: RiderState, s_m: float) -> np.ndarray:
-        """State vector of the 3D model from the estimate (roll, steering: from the plan)."""
+        """State vector of the horizon model from the estimate (steering: from the plan)."""
         r, m = self.rider, self._model
         x0 = np.zeros(m.nx)
         theta = float(self.course.at("theta_rad", s_m))
-        alpha = math.remainder(state.heading_rad - theta, 2 * math.pi)
+        heading = state.heading_rad if math.isfinite(state.heading_rad) else theta
+        alpha = math.remainder(heading - theta, 2 * math.pi)
         v = max(float(state.speed_mps), 1.0) if math.isfinite(state.speed_mps) else 1.0
         power = float(state.power_w) if math.isfinite(state.power_w) else 0.0
         if power >= 0:
             w_n = power / r.max_power_w
         else:
             w_n = power / (self.conditions.mu_x * GRAVITY_MPS2 * r.mass_kg * v)
-        x0[m.index("n")] = state.n_m
+        w_prime = state.w_prime_j if math.isfinite(state.w_prime_j) else 0.0
+        x0[m.index("n")] = state.n_m if math.isfinite(state.n_m) else 0.0
         x0[m.index("alpha")] = np.clip(alpha, -0.5, 0.5)
         x0[m.index("v")] = v
         x0[m.index("w_n")] = np.clip(w_n, -1.0, 1.0)
-        x0[m.index("e_n")] = np.clip(state.w_prime_j / r.w_prime_j, 0.0, 1.0)
-        if self.plan.model == "3d":
-            for name, attr in (("phi", "phi_rad"), ("phi_dot", "phi_dot_radps"),
-                               ("delta_n", "delta_n")):
-                x0[m.index(name)] = float(self.plan.at(attr, s_m))
+        x0[m.index("e_n")] = np.clip(w_prime / r.w_prime_j, 0.0, 1.0)
+        x0[m.index("delta_n")] = self._plan_delta_n(np.array([s_m]))[0]
         return x0
+
+    def _plan_delta_n(self, nodes: np.ndarray) -> np.ndarray:
+        if self.plan.model == "3d":
+            return self.plan.at("delta_n", nodes)
+        # A 1D plan: the steering of the steady turn along the centre line.
+        kappa = self.course.at("kappa_per_m", nodes)
+        return np.arctan(self.rider.wheelbase_m * kappa) / self.rider.steer_max_rad
 
     def _plan_guess(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         m, plan = self._model, self.plan
-        x = np.vstack([plan.at(attr, nodes) for attr in (
-            "n_m", "alpha_rad", "phi_rad", "phi_dot_radps", "v_mps", "w_n", "delta_n", "e_n")])
+        x = np.zeros((m.nx, len(nodes)))
+        for name, attr in (("n", "n_m"), ("alpha", "alpha_rad"), ("v", "v_mps"),
+                           ("w_n", "w_n"), ("e_n", "e_n")):
+            x[m.index(name)] = plan.at(attr, nodes)
+        x[m.index("delta_n")] = self._plan_delta_n(nodes)
         u = np.vstack([plan.at("u_delta", nodes[:-1]), plan.at("u_w", nodes[:-1])])
-        if plan.model != "3d":  # a 1D plan: steady lean and steering on the centre line
-            kappa = self.course.at("kappa_per_m", nodes)
-            x[m.index("delta_n")] = np.arctan(self.rider.wheelbase_m * kappa) / self.rider.steer_max_rad
-            x[m.index("phi")] = -np.arctan(x[m.index("v")] ** 2 * kappa / GRAVITY_MPS2)
         return x, u
 
     def _guess(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
@@ -207,21 +263,67 @@ class HorizonPlanner:
             u[i, inside_u] = np.interp(nodes[:-1][inside_u], s_prev[:-1], u_prev[i])
         return x, u, "shifted"
 
+    def _shift_multipliers(self, nodes: np.ndarray) -> dict[str, np.ndarray]:
+        """The previous solution's multipliers moved onto `nodes` (zero beyond its end)."""
+        if not self.settings.warm_multipliers or self._previous_mult is None:
+            return {}
+        s_prev, lam_x, lam_g = self._previous_mult
+        lay = self._tr.layout
+        inside = nodes <= s_prev[-1]
+
+        def shift(rows: np.ndarray, s_from: np.ndarray, s_to: np.ndarray, keep: np.ndarray
+                  ) -> np.ndarray:
+            out = np.zeros((rows.shape[0], len(s_to)))
+            for i in range(rows.shape[0]):
+                out[i, keep] = np.interp(s_to[keep], s_from, rows[i])
+            return out
+
+        lx, lu, ls = lay.split(lam_x)
+        lam_x_new = lay.join(shift(lx, s_prev, nodes, inside),
+                             shift(lu, s_prev[:-1], nodes[:-1], inside[:-1]),
+                             shift(ls, s_prev[:-1], nodes[:-1], inside[:-1]), lam_x[-1])
+        lam_x_new[: lay.nx] = 0.0  # the first node is fixed by its bounds: no information
+        n, nx, n_path = lay.n_intervals, lay.nx, lay.n_path
+        gap = lam_g[: nx * n].reshape(n, nx).T
+        path = lam_g[nx * n: nx * n + n_path * (n + 1)].reshape(n + 1, n_path).T
+        lam_g_new = np.concatenate([
+            shift(gap, s_prev[:-1], nodes[:-1], inside[:-1]).T.ravel(),
+            shift(path, s_prev, nodes, inside).T.ravel(), lam_g[-1:]])
+        return {"lam_x0": lam_x_new, "lam_g0": lam_g_new}
+
+    def _bounds(self, nodes: np.ndarray, x0: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Simple bounds per node: C11-C14, v >= v_min; the first node fixed at `x0`."""
+        m, c, n = self._model, self.course, len(nodes)
+        lbx, ubx = np.full((m.nx, n), -np.inf), np.full((m.nx, n), np.inf)
+        lbx[m.index("n")] = -(c.at("width_right_m", nodes) - self.settings.margin_m)  # C11
+        ubx[m.index("n")] = c.at("width_left_m", nodes) - self.settings.margin_m
+        lbx[m.index("alpha")], ubx[m.index("alpha")] = -_ALPHA_MAX_RAD, _ALPHA_MAX_RAD
+        lbx[m.index("v")] = V_MIN_MPS
+        lbx[m.index("w_n")], ubx[m.index("w_n")] = -1.0, 1.0  # C13
+        lbx[m.index("delta_n")], ubx[m.index("delta_n")] = -1.0, 1.0  # C14
+        lbx[m.index("e_n")], ubx[m.index("e_n")] = 0.0, 1.0  # C12
+        x0 = np.clip(x0, lbx[:, 0], ubx[:, 0])
+        lbx[:, 0] = ubx[:, 0] = x0
+        u_max = np.array([[U_DELTA_MAX], [U_W_MAX]])
+        return lbx, ubx, np.repeat(-u_max, n - 1, axis=1), np.repeat(u_max, n - 1, axis=1)
+
     # ---- solve -------------------------------------------------------------------------------
     def solve(self, state: RiderState) -> HorizonSolution:
         """Replan from `state`. Never raises on solver failure: `success=False` + status."""
         t0 = time.perf_counter()
-        s0 = float(np.clip(state.s_m, 0.0, self.course.length_m - 1.0))
+        s_est = float(state.s_m) if math.isfinite(state.s_m) else 0.0
+        s0 = float(np.clip(s_est, 0.0, self.course.length_m - 1.0))
         nodes = self.window(s0)
         tr, lay, m = self._tr, self._tr.layout, self._model
-        (lbx, ubx), (lbu, ubu) = bounds(m, self.course, nodes, self.rider,
-                                        self._ocp_settings, np.zeros(m.nx))
-        x0 = self.initial_state(state, s0)
-        x0 = np.clip(x0, np.where(np.isfinite(lbx[:, 1]), lbx[:, 1], -1e9),
-                     np.where(np.isfinite(ubx[:, 1]), ubx[:, 1], 1e9))
-        x0[m.index("v")] = max(x0[m.index("v")], V_MIN_MPS)
-        lbx[:, 0] = ubx[:, 0] = x0
-        x_guess, u_guess, _ = self._guess(nodes)
+        lbx, ubx, lbu, ubu = self._bounds(nodes, self.initial_state(state, s0))
+        x0 = lbx[:, 0]
+        x_guess, u_guess, start = self._guess(nodes)
+        solver = self._solvers["warm" if start == "shifted" else "cold"]
+        if start == "plan":  # re-anchor the plan's W' at the rider's (a W' deficit)
+            ie = m.index("e_n")
+            deficit = x_guess[ie, 0] - x0[ie]
+            x_guess[ie] = np.clip(x_guess[ie] - deficit, 0.0, 1.0)
         x_guess[:, 0] = x0
         end = nodes[-1]
         e_dev = x0[m.index("e_n")] - float(self.plan.at("e_n", s0))
@@ -233,10 +335,11 @@ class HorizonPlanner:
         ubw = lay.join(ubx, ubu, np.full((lay.ns, lay.n_intervals), np.inf), np.inf)
         w0 = np.clip(lay.join(x_guess, u_guess), lbw, ubw)
         try:
-            sol = self._solver(x0=w0, p=p, lbx=lbw, ubx=ubw, lbg=tr.lbg, ubg=tr.ubg)
-            stats = self._solver.stats()
+            sol = solver(x0=w0, p=p, lbx=lbw, ubx=ubw, lbg=tr.lbg, ubg=tr.ubg,
+                            **(self._shift_multipliers(nodes) if start == "shifted" else {}))
+            stats = solver.stats()
             w = np.asarray(sol["x"]).ravel()
-            success = bool(stats.get("success", False)) and np.all(np.isfinite(w))
+            success = bool(stats.get("success", False)) and bool(np.all(np.isfinite(w)))
             status = str(stats.get("return_status", "unknown"))
             iterations = int(stats.get("iter_count", 0))
         except RuntimeError as err:  # an evaluation error inside CasADi: report, never raise
@@ -247,6 +350,8 @@ class HorizonPlanner:
         t = np.concatenate([[0.0], np.cumsum(dt.ravel())])
         if success:
             self._previous = (nodes, x, u)
+            self._previous_mult = (nodes, np.asarray(sol["lam_x"]).ravel(),
+                                   np.asarray(sol["lam_g"]).ravel())
         else:
             log.warning("horizon solve at s=%.0f m: %s after %d iterations", s0, status,
                         iterations)
@@ -255,11 +360,12 @@ class HorizonPlanner:
         plan_rest_w = float(self.plan.w_prime_j[-1] - self.plan.at("w_prime_j", end))
         return HorizonSolution(
             s_m=nodes, n_m=x[m.index("n")], v_mps=x[m.index("v")], power_w=y[0],
-            phi_rad=x[m.index("phi")], t_s=t, w_prime_j=e_j, success=success, status=status,
-            iterations=iterations, solve_time_s=time.perf_counter() - t0,
+            phi_rad=steady_lean_rad(y[2]), t_s=t, w_prime_j=e_j, success=success,
+            status=status, iterations=iterations, solve_time_s=time.perf_counter() - t0,
             predicted_finish_s=state.elapsed_s + float(t[-1]) + plan_rest_t,
             w_prime_finish_j=float(e_j[-1]) + plan_rest_w)
 
     def reset(self) -> None:
         """Forget the warm start (e.g. after a jump of the estimate)."""
         self._previous = None
+        self._previous_mult = None

@@ -120,21 +120,23 @@ def _par(p: ca.SX) -> dict[str, ca.SX]:
 
 
 def _longitudinal(v: ca.SX, w_n: ca.SX, e_n: ca.SX, psi: ca.SX, beta: ca.SX,
-                  q: dict[str, ca.SX], wprime_model: WPrimeModel) -> tuple[ca.SX, ca.SX]:
-    """dv/dt (E3) and dE_n/dt (E9), shared by both models."""
+                  q: dict[str, ca.SX], wprime_model: WPrimeModel, eps_wn: float = _EPS_WN,
+                  sharpness_w: float = _SHARPNESS_W) -> tuple[ca.SX, ca.SX]:
+    """dv/dt (E3) and dE_n/dt (E9), shared by all models (smoothing widths: module doc)."""
     g = GRAVITY_MPS2
     # Guards for wild trial points only (inside the bounds they are inactive): speed in
     # divisions, and the E9 softplus argument that would overflow exp() far beyond W_max.
     v = ca.fmax(v, _V_GUARD_MPS)
-    p_plus = q["p_max"] * _smooth_pos(w_n, _EPS_WN)
-    p_brake = q["mu_x"] * g * q["mass"] * v * (w_n - _smooth_pos(w_n, _EPS_WN))
+    p_plus = q["p_max"] * _smooth_pos(w_n, eps_wn)
+    p_brake = q["mu_x"] * g * q["mass"] * v * (w_n - _smooth_pos(w_n, eps_wn))
     # E3 [fix]: wind projected on the absolute heading psi; tail wind positive.
     v_wind = q["wind_e"] * ca.cos(psi) + q["wind_n"] * ca.sin(psi)
     v_air = v - v_wind
     drag = q["k_v"] * v_air * ca.sqrt(v_air * v_air + _EPS_AIR)
     resist = q["mass"] * g * (q["crr"] * ca.cos(beta) + ca.sin(beta))
     v_dot = (p_plus + p_brake) / (q["mass"] * v) - resist / q["mass"] - drag / q["mass"]
-    e_dot = e_n_rate(e_n, ca.fmin(p_plus, 2 * q["p_max"]), q["cp"], q["w_prime"], wprime_model, sharpness_w=_SHARPNESS_W)
+    e_dot = e_n_rate(e_n, ca.fmin(p_plus, 2 * q["p_max"]), q["cp"], q["w_prime"], wprime_model,
+                     sharpness_w=sharpness_w)
     return v_dot, e_dot
 
 
@@ -192,6 +194,71 @@ def build_3d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
     path = ca.Function("path3d", [x, p], [ca.vertcat(friction - 1, pedal)], ["x", "p"], ["g"])
     outputs = ca.Function("out3d", [x, p], [_report(v, w_n, ay, friction, q)], ["x", "p"], ["y"])
     return SpatialModel("3d", STATES_3D, CONTROLS_3D, ode, path, outputs)
+
+
+#: State names of the steady-lean horizon model (`build_3d_steady_lean`), in vector order.
+STATES_3D_STEADY = ("n", "alpha", "v", "w_n", "delta_n", "e_n")
+
+
+def steady_lean_rad(ay: ca.SX | np.ndarray) -> ca.SX | np.ndarray:
+    """Lean of the steady turn (E5 with phi_ddot = phi_dot = 0): tan(phi) = -a_y / g."""
+    if isinstance(ay, (ca.SX, ca.MX, ca.DM)):
+        return -ca.atan(ay / GRAVITY_MPS2)
+    return -np.arctan(np.asarray(ay) / GRAVITY_MPS2)
+
+
+def build_3d_steady_lean(wprime_model: WPrimeModel = WPrimeModel.SKIBA, *,
+                         eps_wn: float = _EPS_WN, sharpness_w: float = _SHARPNESS_W
+                         ) -> SpatialModel:
+    """The 3D model with quasi-steady roll, for the receding horizon (not the full plan).
+
+    Same as `build_3d` (E1-E3, E6-E9, C15, C16) except that the roll dynamics E4-E5 are
+    replaced by their equilibrium, the steady turn `tan(phi) = -a_y / g` with
+    `a_y = v^2 tan(delta) / L`: `phi` and `phi_dot` stop being states and `phi` is an
+    algebraic function of speed and steering. This removes the unstable roll mode
+    (time constant ~0.45 s), so shooting intervals of 5-15 m are well conditioned.
+    Lean and grip stay linked: C16 bounds `a_y`, hence `phi`, and C15 gates pedalling
+    on that `phi`. States `x = [n, alpha, v, W_n, delta_n, E_n]`, controls as the 3D model.
+    """
+    x = ca.SX.sym("x", len(STATES_3D_STEADY))
+    u = ca.SX.sym("u", len(CONTROLS_3D))
+    road = ca.SX.sym("road", len(ROAD))
+    p = ca.SX.sym("p", len(PARAMS))
+    n, alpha, v, w_n, delta_n, e_n = (x[i] for i in range(6))
+    u_delta, u_w = u[0], u[1]
+    kappa, beta, theta = road[0], road[1], road[2]
+    q = _par(p)
+    g = GRAVITY_MPS2
+
+    delta = delta_n * q["steer_max"]
+    s_dot = ca.fmax(v, _V_GUARD_MPS) * ca.cos(alpha) / (1 - n * kappa)  # E8
+    yaw_rate = v * ca.tan(delta) / q["wheelbase"]  # E1 [fix]
+    v_dot, e_dot = _longitudinal(v, w_n, e_n, theta + alpha, beta, q, wprime_model,
+                                 eps_wn, sharpness_w)
+    x_dot = ca.vertcat(
+        v * ca.sin(alpha),  # E2
+        yaw_rate - kappa * s_dot,  # E1
+        v_dot,  # E3
+        u_w * q["power_rate_max"] / q["p_max"],  # E6 [fix]
+        u_delta * q["steer_rate_max"] / q["steer_max"],  # E7 [fix]
+        e_dot,  # E9
+    )
+    dt_ds = 1 / s_dot
+    running = dt_ds * (1 + q["w_delta"] * u_delta ** 2 + q["w_power"] * u_w ** 2)
+    tag = f"{wprime_model.value}_{eps_wn:g}_{sharpness_w:g}".replace(".", "p").replace("-", "m")
+    ode = ca.Function(f"ode3dsteady_{tag}", [x, u, road, p],
+                      [x_dot * dt_ds, dt_ds, running], ["x", "u", "road", "p"],
+                      ["dxds", "dtds", "dJds"])
+
+    ay = v * yaw_rate
+    friction = _ax_squared(v, w_n, q) + (ay / (q["mu_y"] * g)) ** 2  # C16
+    r = steady_lean_rad(ay) / (_PEDAL_MARGIN * q["pedal_lean"])  # C15 on the steady lean
+    pedal = w_n - _smooth_pos(1 - r * r, _EPS_PEDAL)
+    path = ca.Function("path3dsteady", [x, p], [ca.vertcat(friction - 1, pedal)],
+                       ["x", "p"], ["g"])
+    outputs = ca.Function("out3dsteady", [x, p], [_report(v, w_n, ay, friction, q)],
+                          ["x", "p"], ["y"])
+    return SpatialModel("3dsteady", STATES_3D_STEADY, CONTROLS_3D, ode, path, outputs)
 
 
 def build_1d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
