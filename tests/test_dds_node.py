@@ -84,7 +84,8 @@ def test_node_turns_inputs_into_advice_and_survives_malformed_payloads(
         Parameter("course", value=str(ride.course)), Parameter("plan", value=str(ride.plan)),
         Parameter("state_file", value=str(tmp_path / "state.json")),
         Parameter("tick_period_s", value=0.05),
-        Parameter("output_log", value=str(tmp_path / "node.mcap"))])
+        Parameter("output_log", value=str(tmp_path / "node.mcap")),
+        Parameter("rerun_sink", value=f"file:{tmp_path / 'node.rrd'}")])
     assert node.get_namespace() == "/itt"
     feeder = Node("feeder", context=ctx, namespace="/itt")
     pubs = {t.key: feeder.create_publisher(typestore.types[t.msgtype], t.key, _qos(t))
@@ -131,6 +132,7 @@ def test_node_turns_inputs_into_advice_and_survives_malformed_payloads(
     assert all(0 < a.state.s_m < 1000 and len(a.horizon_s_m) > 10 for a in advice)
     saved = json.loads((tmp_path / "state.json").read_text())
     assert saved["engine"]["estimator"]["w_prime_j"] < 22_000  # W' used on the way
+    assert (tmp_path / "node.rrd").stat().st_size > 10_000  # Rerun recording written
     # The node's own log: inputs it accepted for decoding, every advice it published.
     info, logged = rosbags_messages(tmp_path / "node.mcap")
     assert info["/itt/advice"] == (topics.ADVICE.msgtype, node.advice_count)

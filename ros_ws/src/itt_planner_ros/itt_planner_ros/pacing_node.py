@@ -397,11 +397,13 @@ class PacingNode(Node):
         return recorder
 
     def close(self) -> None:
-        """Save the state and finish the output log (call before exit)."""
+        """Save the state, finish the output log, flush Rerun (call before exit)."""
         self.save_state()
         if self._log_writer is not None:
             with self._io_lock:
                 self._log_writer.close()
+        if self._recorder is not None:
+            self._recorder.rec.flush(timeout_sec=10.0)
 
 
 def run(args: list[str] | None = None, *, namespace: str | None = None,
