@@ -1,22 +1,28 @@
-"""Receding-horizon replan latency along a course (from the full-course plan's states).
+"""Receding-horizon replan latency over a whole course (states from the plan, perturbed).
 
-Replans every `--step` metres (about one replan period at race speed) with a warm
-start, then the same states cold (warm start reset each time); prints median / p95 /
-max latency, iterations and success counts, and the ratio against re-solving the
-whole remaining course (measured on a few states).
-Run: .venv/bin/python bench/bench_horizon.py [--course verona-like] [--horizon 1000]
+Replans every `--step` metres of course (about 3-7 replan periods at race speed) from
+the full-course plan's state there, perturbed (speed x N(1, 3 %), line +- N(0, 0.3 m),
+W' - U(0, 1500 J); seeded), first with the warm start (previous solution shifted), then
+the same states cold (warm start reset each time). Prints median / p95 / max latency,
+iterations and success per horizon, and the ratio against re-solving the whole
+remaining course with `ocp.solve_plan` (measured on two states only: ~30 s each).
+Run: .venv/bin/python bench/bench_horizon.py [--course verona-like] [--horizon 1000 500]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import logging
 import time
 
 import numpy as np
 
+from itt_planner.course import Course
 from itt_planner.course_loader import load_course
 from itt_planner.horizon import HorizonPlanner, HorizonSettings
 from itt_planner.ocp import solve_plan
+from itt_planner.plan_cache import load_or_solve
 from itt_planner.rider import PRESETS
 from itt_planner.state import RiderState
 
@@ -29,23 +35,34 @@ def state_at(course, plan, s: float) -> RiderState:
                       w_prime_j=float(plan.at("w_prime_j", s)), elapsed_s=float(plan.at("t_s", s)))
 
 
+def perturbed(state: RiderState, rng: np.random.Generator) -> RiderState:
+    return dataclasses.replace(
+        state, speed_mps=state.speed_mps * (1 + 0.03 * rng.standard_normal()),
+        n_m=state.n_m + 0.3 * rng.standard_normal(),
+        w_prime_j=max(0.0, state.w_prime_j - rng.uniform(0.0, 1500.0)))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--course", default="verona-like")
     ap.add_argument("--horizon", type=float, nargs="+", default=[1000.0, 500.0])
-    ap.add_argument("--step", type=float, default=15.0)
+    ap.add_argument("--step", type=float, default=50.0)
     ap.add_argument("--until", type=float, default=None, help="stop at this s (m)")
+    ap.add_argument("--baseline", type=int, default=2, help="full re-solves (0: skip)")
     args = ap.parse_args()
+    logging.disable(logging.WARNING)  # failed replans are counted below
     course = load_course(args.course)
     rider = PRESETS["typical"]
-    plan = solve_plan(course, rider, model="3d")
-    print(f"plan: {plan.solver_status}, {plan.finish_time_s:.1f} s, {plan.solve_time_s:.1f} s solve")
+    plan = load_or_solve(course, rider)
+    print(f"plan: {plan.solver_status}, {plan.finish_time_s:.1f} s")
     end = min(args.until or course.length_m, course.length_m - 20)
-    states = [state_at(course, plan, s) for s in np.arange(0.0, end, args.step)]
+    rng = np.random.default_rng(0)
+    states = [perturbed(state_at(course, plan, s), rng) for s in np.arange(0.0, end, args.step)]
+    median_warm = {}
     for horizon in args.horizon:
         planner = HorizonPlanner(course, rider, plan, settings=HorizonSettings(horizon_m=horizon))
         for mode in ("warm", "cold"):
-            lat, its, ok = [], [], 0
+            lat, its, ok, wmin = [], [], 0, np.inf
             for st in states:
                 if mode == "cold":
                     planner.reset()
@@ -53,24 +70,28 @@ def main() -> None:
                 lat.append(sol.solve_time_s)
                 its.append(sol.iterations)
                 ok += sol.success
+                if sol.success:
+                    wmin = min(wmin, float(sol.w_prime_j.min()))
             lat_a = np.array(lat)
+            if mode == "warm":
+                median_warm[horizon] = float(np.median(lat_a))
             print(f"H={horizon:.0f} m {mode}: {len(states)} replans, median {1000 * np.median(lat_a):.0f} ms, "
                   f"p95 {1000 * np.percentile(lat_a, 95):.0f} ms, max {1000 * lat_a.max():.0f} ms, "
                   f"over 1 s: {(lat_a > 1).sum()}, median it {np.median(its):.0f}, "
-                  f"success {ok}/{len(states)}", flush=True)
-    # Baseline: re-solve the whole remaining course from a few states.
+                  f"success {ok}/{len(states)} ({100 * ok / len(states):.1f} %), "
+                  f"min W' {wmin:.1f} J", flush=True)
     base = []
-    for s in (course.length_m * 0.25, course.length_m * 0.5):
-        from itt_planner.course import Course  # noqa: PLC0415
-
-        i = int(s / course.ds_m)
+    for frac in (0.25, 0.5)[: args.baseline]:
+        i = int(course.length_m * frac / course.ds_m)
         rest = Course.from_centerline(course.name + "-rest", course.x_m[i:], course.y_m[i:],
                                       course.z_m[i:], origin=course.origin)
         t0 = time.perf_counter()
         solve_plan(rest, rider, model="3d")
         base.append(time.perf_counter() - t0)
-    print(f"re-solving the remaining course (from 25 % and 50 %): {', '.join(f'{b:.1f}' for b in base)} s"
-          f" -> ratio vs median warm replan x{np.median(base) / np.median(lat_a):.0f} (last horizon)")
+    if base:
+        print(f"re-solving the remaining course (from {', '.join(f'{f:.0%}' for f in (0.25, 0.5)[: len(base)])}): "
+              f"{', '.join(f'{b:.1f}' for b in base)} s; ratio vs median warm replan: "
+              + ", ".join(f"H={h:.0f} m x{np.median(base) / m:.0f}" for h, m in median_warm.items()))
 
 
 if __name__ == "__main__":

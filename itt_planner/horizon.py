@@ -102,7 +102,7 @@ class HorizonSettings:
         tol: IPOPT tolerance (a replan needs less accuracy than the plan).
         acceptable_iter: IPOPT stops after this many consecutive iterates within
             10 x `tol` ("Solved_To_Acceptable_Level", counted as success): the advice
-            does not change measurably in the last digits, the latency does.
+            does not change measurably in the last digits, the latency ~2x.
         eps_wn, sharpness_w: smoothing widths of max(W_n, 0) and of the E9 switch at
             critical power (model.py) in the horizon model.
         w_delta, w_power: objective weights w_1, w_2 (model.md section 5).

@@ -67,7 +67,8 @@ def test_advice_contents(course, plan):
     solved = [a for a in advice if not a.fallback]
     assert solved, "no replan converged"
     a = solved[-1]
-    assert a.solver_status == "Solve_Succeeded" and a.iterations > 0
+    assert a.solver_status in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+    assert a.iterations > 0
     assert a.solve_time_s > 0.0
     n = len(a.horizon_s_m)
     for arr in (a.horizon_power_w, a.horizon_speed_mps, a.horizon_n_m, a.line_x_m,
