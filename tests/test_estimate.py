@@ -209,3 +209,27 @@ def test_real_ride_on_its_own_track(shared_data, name):
     # Most fixes are on the track; the rest (GPS jumps, stretches the course fit left
     # out of a messy track: the Shanghai stop-and-go ride keeps ~82 %) were counted.
     assert est.counters["gps_accepted"] >= 0.8 * np.isfinite(rec.lat_deg).sum()
+
+
+def test_closed_loop_wraps_into_laps():
+    """On a closed loop the match wraps around the seam: progress is cumulative (laps),
+    and the published s stops at the finish (the course length)."""
+    from itt_planner.course import Course, GeoOrigin
+
+    u = np.linspace(0.0, 2 * np.pi, 800, endpoint=False)
+    x, y = 300.0 * np.cos(u) - 300.0, 200.0 * np.sin(u)  # an ellipse starting at (0, 0)
+    loop = Course.from_centerline("loop", np.append(x, x[0]), np.append(y, y[0]),
+                                  np.zeros(801), origin=GeoOrigin(45.0, 11.0, 0.0),
+                                  closed_loop=True)
+    est = StateEstimator(loop, RIDER)
+    v, length = 12.0, loop.length_m
+    published = []
+    for k in range(int(1.3 * length / v)):
+        s_true = (v * k) % length
+        lat, lon, alt = (float(a) for a in loop.to_geodetic(*loop.enu_at(s_true, 0.0)))
+        est.on_speed(WheelSpeed(float(k), v))
+        assert est.on_gps(GpsFix(float(k), lat, lon, alt)), f"fix {k} rejected"
+        published.append(est.state(float(k)).s_m)
+    assert np.diff(published).min() >= 0.0
+    assert published[-1] == pytest.approx(length)
+    assert est.distance_m == pytest.approx(v * (len(published) - 1), abs=10.0)
