@@ -1,15 +1,25 @@
 """Full-course OCP benchmark: 3D and 1D solves vs a naive Opti baseline.
 
-Prints, per case, the median wall time of >= 3 runs, iterations, nodes, finish time and
-the process's peak RSS; and the ratio against the naive baseline (uniform 2 m mesh,
-casadi.Opti on MX, IPOPT defaults) measured here on the first `BASELINE_M` metres of
-the same course (the whole course takes minutes that way), scaled per node.
+Prints, per course and model, the median wall and CPU time of >= 3 `solve_plan` runs,
+iterations, nodes, finish time and the process's peak RSS (measured in a fresh child
+process per case, so one case's memory does not hide another's). The naive baseline
+(uniform 2 m mesh, casadi.Opti on MX, one RK4 step per interval, IPOPT defaults) takes
+minutes on a whole course, so it runs on the first `--piece-m` metres of each course, and
+`solve_plan` is timed on the SAME piece for a like-for-like ratio; the full-course ratio
+is the baseline's per-node time scaled to the full course's 2 m node count (an estimate).
+`--mesh-study` also solves verona-like 3D on a uniform 1 m mesh (the 0.3 % mesh bar).
+
 Run: .venv/bin/python bench/bench_ocp.py [--runs 3] [--courses verona-like,rovereto-like]
+     [--piece-m 1000] [--mesh-study]
+Wall times on a shared, loaded machine: compare CPU times; the load average is printed.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import multiprocessing as mp
+import os
 import resource
 import statistics
 import time
@@ -17,24 +27,38 @@ import time
 import casadi as ca
 import numpy as np
 
+from itt_planner.conditions import Conditions
+from itt_planner.course import Course
 from itt_planner.course_loader import load_course
 from itt_planner.mesh import build_mesh, road_data
 from itt_planner.model import ModelParams, build_3d
 from itt_planner.ocp import OcpSettings, bounds, initial_guess, solve_plan, start_speed
-from itt_planner.conditions import Conditions
 from itt_planner.rider import PRESETS
-
-BASELINE_M = 1000.0
 
 
 def peak_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def naive_baseline(course, rider, length_m: float) -> tuple[float, int, int]:
+def load() -> str:
+    return "/".join(f"{x:.1f}" for x in os.getloadavg())
+
+
+def piece(course: Course, length_m: float) -> Course:
+    """The first `length_m` of a course as a course of its own (same road, same widths)."""
+    k = int(length_m / course.ds_m) + 1
+    return Course.from_centerline(f"{course.name}-first-{length_m:.0f}m", course.x_m[:k],
+                                  course.y_m[:k], course.z_m[:k], origin=course.origin,
+                                  width_left_m=course.width_left_m[:k],
+                                  width_right_m=course.width_right_m[:k],
+                                  theta_rad=course.theta_rad[:k],
+                                  kappa_per_m=course.kappa_per_m[:k], synthetic=True)
+
+
+def naive_baseline(course: Course, rider) -> dict:  # noqa: ANN001
     """Opti + MX, uniform 2 m mesh, one RK4 step per interval, IPOPT defaults."""
     model = build_3d()
-    nodes = build_mesh(course, uniform_m=2.0, end_m=length_m)
+    nodes = build_mesh(course, uniform_m=2.0)
     n = len(nodes) - 1
     road = road_data(course, nodes)
     par = ModelParams(rider, Conditions()).vector()
@@ -43,55 +67,109 @@ def naive_baseline(course, rider, length_m: float) -> tuple[float, int, int]:
     u = opti.variable(model.nu, n)
     cost = 0
     for k in range(n):
-        h = road[3, k]
-        rk = [road[:, k]]
-        k1, t1, j1 = model.ode(x[:, k], u[:, k], rk[0], par)
-        k2, t2, j2 = model.ode(x[:, k] + h / 2 * k1, u[:, k], rk[0], par)
-        k3, t3, j3 = model.ode(x[:, k] + h / 2 * k2, u[:, k], rk[0], par)
-        k4, t4, j4 = model.ode(x[:, k] + h * k3, u[:, k], rk[0], par)
+        h, rk = road[3, k], road[:, k]
+        k1, _, j1 = model.ode(x[:, k], u[:, k], rk, par)
+        k2, _, j2 = model.ode(x[:, k] + h / 2 * k1, u[:, k], rk, par)
+        k3, _, j3 = model.ode(x[:, k] + h / 2 * k2, u[:, k], rk, par)
+        k4, _, j4 = model.ode(x[:, k] + h * k3, u[:, k], rk, par)
         opti.subject_to(x[:, k + 1] == x[:, k] + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4))
         cost += h / 6 * (j1 + 2 * j2 + 2 * j3 + j4)
         opti.subject_to(model.path(x[:, k + 1], par) <= 0)
-    xg, ug = initial_guess(model, course, nodes, rider, Conditions(),
-                           start_speed(rider, Conditions(), OcpSettings()))
+    xg, _ = initial_guess(model, course, nodes, rider, Conditions(),
+                          start_speed(rider, Conditions(), OcpSettings()))
     (lbx, ubx), _ = bounds(model, course, nodes, rider, OcpSettings(), xg[:, 0])
     opti.subject_to(opti.bounded(lbx, x, ubx))
     opti.set_initial(x, np.clip(xg, lbx, ubx))
     opti.minimize(cost)
-    opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "sb": "yes", "max_iter": 1000})
-    t0 = time.perf_counter()
+    opti.solver("ipopt", {"print_time": False}, {"print_level": 0, "sb": "yes",
+                                                 "max_iter": 1000})
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         opti.solve()
-        it = opti.stats()["iter_count"]
+        stats, finish = opti.stats(), float(opti.value(cost))
     except RuntimeError:
-        it = opti.debug.stats()["iter_count"]
-    return time.perf_counter() - t0, it, n + 1
+        stats, finish = opti.debug.stats(), float("nan")
+    return {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
+            "iterations": stats["iter_count"], "n_nodes": n + 1,
+            "status": stats["return_status"], "objective": finish}
+
+
+def _solve_case(spec: tuple[str, float | None, str, int, dict], out: mp.Queue) -> None:
+    """Child process: `runs` solves of one case; reports medians and the peak RSS."""
+    name, piece_m, model, runs, settings = spec
+    course = load_course(name)
+    if piece_m:
+        course = piece(course, piece_m)
+    walls, cpus, plan = [], [], None
+    for _ in range(runs):
+        t0, c0 = time.perf_counter(), time.process_time()
+        plan = solve_plan(course, PRESETS["typical"], settings=OcpSettings(**settings),
+                          model=model)
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+    out.put({"walls": walls, "cpus": cpus, "wall_s": statistics.median(walls),
+             "cpu_s": statistics.median(cpus), "iterations": plan.iterations,
+             "n_nodes": plan.n_nodes, "status": plan.solver_status,
+             "finish_s": plan.finish_time_s, "peak_mb": peak_mb(), "load": load()})
+
+
+def _baseline_case(spec: tuple[str, float], out: mp.Queue) -> None:
+    name, piece_m = spec
+    res = naive_baseline(piece(load_course(name), piece_m), PRESETS["typical"])
+    out.put({**res, "peak_mb": peak_mb(), "load": load()})
+
+
+def run(target, spec) -> dict:  # noqa: ANN001
+    """Run one case in a fresh process (clean peak-RSS figure, no cached solver)."""
+    q: mp.Queue = mp.get_context("fork").Queue()
+    p = mp.get_context("fork").Process(target=target, args=(spec, q))
+    p.start()
+    res = q.get()
+    p.join()
+    return res
+
+
+def fmt(r: dict) -> str:
+    runs = ", ".join(f"{w:.1f}" for w in r.get("walls", []))
+    return (f"wall {r['wall_s']:.2f} s (runs {runs}), cpu {r['cpu_s']:.2f} s, "
+            f"{r['iterations']} it, {r['n_nodes']} nodes, {r['status']}, "
+            f"finish {r.get('finish_s', float('nan')):.2f} s, peak RSS {r['peak_mb']:.0f} MB, "
+            f"load {r['load']}")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--courses", default="verona-like,rovereto-like")
+    ap.add_argument("--piece-m", type=float, default=1000.0)
+    ap.add_argument("--mesh-study", action="store_true")
     args = ap.parse_args()
-    rider = PRESETS["typical"]
+    results = {}
     for name in args.courses.split(","):
-        course = load_course(name)
-        t_base, it_base, n_base = naive_baseline(course, rider, BASELINE_M)
-        print(f"{name}: naive baseline (Opti/MX, uniform 2 m, IPOPT defaults) on the first "
-              f"{BASELINE_M:.0f} m: {t_base:.1f} s, {it_base} it, {n_base} nodes "
-              f"({1000 * t_base / n_base:.2f} ms/node)", flush=True)
+        base = run(_baseline_case, (name, args.piece_m))
+        ours = run(_solve_case, (name, args.piece_m, "3d", args.runs, {}))
+        print(f"{name}, first {args.piece_m:.0f} m, 3D:\n  naive (Opti/MX, uniform 2 m, IPOPT "
+              f"defaults): {fmt(base)}\n  solve_plan: {fmt(ours)}\n  ratio naive/ours: "
+              f"wall x{base['wall_s'] / ours['wall_s']:.1f}, cpu x{base['cpu_s'] / ours['cpu_s']:.1f}",
+              flush=True)
+        length = load_course(name).length_m
         for model in ("1d", "3d"):
-            times, plan = [], None
-            for _ in range(args.runs):
-                t0 = time.perf_counter()
-                plan = solve_plan(course, rider, model=model)
-                times.append(time.perf_counter() - t0)
-            med = statistics.median(times)
-            per_node = med / plan.n_nodes
-            print(f"  {model}: median {med:.2f} s of {args.runs} (runs {', '.join(f'{t:.2f}' for t in times)}), "
-                  f"{plan.iterations} it, {plan.n_nodes} nodes, status {plan.solver_status}, "
-                  f"finish {plan.finish_time_s:.1f} s, peak RSS {peak_mb():.0f} MB, "
-                  f"per-node ratio vs naive x{(t_base / n_base) / per_node:.1f}", flush=True)
+            r = run(_solve_case, (name, None, model, args.runs, {}))
+            # Naive cost per 2 m node, scaled to the full course (estimate; see docstring).
+            naive_full = base["cpu_s"] / base["n_nodes"] * (length / 2.0 + 1)
+            print(f"  {name} full course {model}: {fmt(r)}; cpu ratio vs naive scaled to the "
+                  f"full course (3D baseline) x{naive_full / r['cpu_s']:.1f}", flush=True)
+            results[f"{name}/{model}"] = r
+        results[f"{name}/baseline"] = base
+    if args.mesh_study:
+        fine = run(_solve_case, ("verona-like", None, "3d", 1,
+                                 {"uniform_m": 1.0, "max_cpu_time_s": 3600.0}))
+        ref = results.get("verona-like/3d") or run(_solve_case, ("verona-like", None, "3d", 1, {}))
+        print(f"mesh study verona-like 3D: uniform 1 m: {fmt(fine)}\n  non-uniform "
+              f"{ref['finish_s']:.2f} s vs uniform 1 m {fine['finish_s']:.2f} s: "
+              f"{100 * (ref['finish_s'] / fine['finish_s'] - 1):+.3f} %", flush=True)
+        results["mesh_study"] = fine
+    print(json.dumps(results))
 
 
 if __name__ == "__main__":

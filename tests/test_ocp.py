@@ -1,17 +1,29 @@
-"""Full-course OCP: physics sanity on a hairpin course, consistency, bad inputs, caching."""
+"""Full-course OCP: physics sanity on a hairpin course, consistency, verona-like, riders,
+bad inputs, caching, and the `plan` / `compare-riders` CLI end to end.
+
+The mesh study and the 3D three-rider comparison on verona-like are `slow` (minutes);
+bench/bench_ocp.py measures them too.
+"""
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
+from typer.testing import CliRunner
 
-from itt_planner.conditions import Conditions
+from itt_planner.cli import app
+from itt_planner.cli.plan import EXIT_NOT_CONVERGED
+from itt_planner.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.course import Course, GeoOrigin
+from itt_planner.course_loader import load_course
 from itt_planner.errors import RiderError, SolveError
 from itt_planner.model import steady_speed_mps
-from itt_planner.ocp import OcpSettings, solve_plan
+from itt_planner.ocp import OcpSettings, compare_riders, longest_stretch, solve_plan
 from itt_planner.plan import Plan, corner_table, splits
 from itt_planner.plan_cache import load_or_solve
 from itt_planner.rider import PRESETS, Rider
@@ -118,3 +130,191 @@ def test_plan_cache_round_trip(tmp_path) -> None:
     assert again.finish_time_s == pytest.approx(first.finish_time_s)
     other = load_or_solve(c, PRESETS["climber"], model="1d", cache_dir=tmp_path)
     assert other.finish_time_s != pytest.approx(first.finish_time_s)
+
+
+# ---- verona-like: 1D vs 3D, riders ------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def verona() -> Course:
+    return load_course("verona-like")
+
+
+@pytest.fixture(scope="module")
+def verona_plans(verona: Course) -> dict[str, Plan]:
+    """The typical rider on verona-like with both models (one 3D solve: the costly one)."""
+    return {m: solve_plan(verona, PRESETS["typical"], model=m) for m in ("3d", "1d")}
+
+
+def test_verona_1d_is_faster_and_overspeeds_the_hairpins(verona: Course,
+                                                         verona_plans: dict[str, Plan]) -> None:
+    p3, p1 = verona_plans["3d"], verona_plans["1d"]
+    assert p3.meta["success"] and p1.meta["success"], (p3.solver_status, p1.solver_status)
+    assert p1.finish_time_s < p3.finish_time_s
+    grip = 1.0 * GRAVITY_MPS2  # dry: mu_y = 1
+    assert p3.friction_use.max() <= 1 + 1e-3  # C16 everywhere on the 3D plan
+    assert np.abs(p3.ay_mps2).max() <= grip * (1 + 1e-3)
+    hairpins = [c for c in verona.corners if c.min_radius_m <= 16.0]
+    assert len(hairpins) >= 2
+    for c in hairpins:
+        v1 = float(p1.at("v_mps", c.apex_s_m))
+        v3 = float(p3.at("v_mps", c.apex_s_m))
+        # The 1D model ignores the bend: its apex speed needs more than the grip on the
+        # centre-line radius; the 3D rider is slower there and within the grip (its line
+        # is wider than the centre line, so v3^2/R may not bound it).
+        assert v1 * v1 / c.min_radius_m > grip, (c.apex_s_m, v1)
+        assert v3 < v1
+
+
+def _section_time(plan: Plan, s0: float, s1: float) -> float:
+    return float(plan.at("t_s", s1) - plan.at("t_s", s0))
+
+
+def test_riders_on_verona_1d(verona: Course, verona_plans: dict[str, Plan]) -> None:
+    """Specialist fastest, climber slowest; where the climber loses most (see below).
+
+    model.md section 7 gives the "weak climber" the lowest power-to-mass (4.5 W/kg vs 5.0
+    and 5.4) AND the lowest power-to-drag-area of the three, so by the steady power
+    balance it loses MORE per km, relatively and absolutely, on the climb than elsewhere:
+    the issue's "the climber loses less on the climb" does not follow from these
+    parameters (measured: climb x1.131 vs rest x1.107 of the specialist's time; reported
+    in bench/results_ocp.md). Asserted instead what the physics says: the relative loss
+    on the climb exceeds the loss elsewhere and is at most the steady-state (CP-only)
+    ratio, which equal W' narrows.
+    """
+    plans = {"typical": verona_plans["1d"]}
+    plans |= {r: solve_plan(verona, PRESETS[r], model="1d") for r in ("specialist", "climber")}
+    assert all(p.meta["success"] for p in plans.values())
+    t = {r: p.finish_time_s for r, p in plans.items()}
+    assert t["specialist"] < t["typical"] < t["climber"]
+    c0, c1 = longest_stretch(verona, climbing=True)
+    assert c1 - c0 > 4000  # the Torricelle climb
+    climb = {r: _section_time(p, c0, c1) for r, p in plans.items()}
+    loss_climb = climb["climber"] / climb["specialist"]
+    loss_rest = (t["climber"] - climb["climber"]) / (t["specialist"] - climb["specialist"])
+    grade = math.tan(float(np.mean(verona.beta_rad[(verona.s_m > c0) & (verona.s_m < c1)])))
+    v = {r: steady_speed_mps(PRESETS[r].critical_power_w, PRESETS[r], grade=grade)
+         for r in ("specialist", "climber")}
+    assert 1.0 < loss_rest < loss_climb <= v["specialist"] / v["climber"]
+
+
+@pytest.mark.slow
+def test_riders_on_verona_3d(verona: Course) -> None:
+    """`compare_riders` (3 riders x both models): same ordering with the 3D model too."""
+    rows = compare_riders(verona)
+    assert all(r["solver_status"] == "Solve_Succeeded" for r in rows)
+    t = {(r["rider"], r["model"]): r["finish_time_s"] for r in rows}
+    for m in ("3d", "1d"):
+        assert t[("specialist", m)] < t[("typical", m)] < t[("climber", m)]
+        assert t[("typical", m)] > 0
+    assert all(t[(r, "1d")] < t[(r, "3d")] for r in PRESETS if (r, "3d") in t)
+
+
+@pytest.mark.slow
+def test_non_uniform_mesh_matches_uniform_1m_on_verona(verona: Course,
+                                                      verona_plans: dict[str, Plan]) -> None:
+    """Mesh bar: the non-uniform mesh's finish time within 0.3 % of a uniform 1 m mesh
+    (also measured in bench/bench_ocp.py --mesh-study)."""
+    fine = solve_plan(verona, PRESETS["typical"], settings=OcpSettings(uniform_m=1.0,
+                                                                       max_cpu_time_s=1800.0))
+    assert fine.meta["success"], fine.solver_status
+    assert verona_plans["3d"].finish_time_s == pytest.approx(fine.finish_time_s, rel=0.003)
+
+
+# ---- CLI: plan / compare-riders end to end ------------------------------------------------
+
+SHORT_COURSE = {
+    "name": "short", "width_left_m": 4.0, "width_right_m": 4.0,
+    "segments": [
+        # With a 250 m first straight IPOPT ended in Restoration_Failed for two of the
+        # three riders (bench/results_ocp.md, open robustness issue): 500 m converges.
+        {"type": "straight", "length_m": 500.0, "grade_pct": 2.0},
+        {"type": "clothoid", "length_m": 10.0, "radius_m": 14.0, "direction": "left",
+         "grade_pct": -3.0},
+        {"type": "arc", "angle_deg": 120.0, "radius_m": 14.0, "direction": "left",
+         "grade_pct": -3.0},
+        {"type": "clothoid", "length_m": 10.0, "grade_pct": -3.0},
+        {"type": "straight", "length_m": 250.0, "grade_pct": -3.0},
+    ],
+}
+PLAN_KEYS = {"finish_time_s", "mean_power_w", "w_prime_end_j", "max_lean_deg", "solve_time_s",
+             "iterations", "n_nodes", "solver_status"}
+runner = CliRunner()
+
+
+def _yaml(path: Path, data: dict) -> Path:
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def _no_traceback(result) -> None:  # noqa: ANN001
+    assert result.exception is None or isinstance(result.exception, SystemExit), result.output
+    assert "Traceback" not in result.output
+
+
+@pytest.mark.parametrize("model", ["3d", "1d"])
+def test_plan_cli_json(tmp_path: Path, model: str) -> None:
+    course = _yaml(tmp_path / "short.yaml", SHORT_COURSE)
+    out = tmp_path / "short.plan.npz"
+    result = runner.invoke(app, ["plan", "--course", str(course), "--rider", "typical",
+                                 "--model", model, "-o", str(out), "--json"])
+    _no_traceback(result)
+    assert result.exit_code == 0, result.output
+    info = json.loads(result.stdout)
+    assert PLAN_KEYS <= set(info)
+    assert info["solver_status"] == "Solve_Succeeded" and info["success"] is True
+    assert 40 < info["finish_time_s"] < 120  # 0.8 km, a sprint on W'
+    assert info["n_nodes"] > 50 and info["iterations"] > 0
+    assert 0 <= info["w_prime_end_j"] <= 0.02 * PRESETS["typical"].w_prime_j
+    assert (info["max_lean_deg"] > 15) if model == "3d" else info["max_lean_deg"] == 0
+    assert Plan.load(out).finish_time_s == pytest.approx(info["finish_time_s"], abs=0.01)
+
+
+def test_compare_riders_cli_json(tmp_path: Path) -> None:
+    course = _yaml(tmp_path / "short.yaml", SHORT_COURSE)
+    result = runner.invoke(app, ["compare-riders", "--course", str(course), "--json"])
+    _no_traceback(result)
+    assert result.exit_code == 0, result.output
+    rows = json.loads(result.stdout)["riders"]
+    assert {(r["rider"], r["model"]) for r in rows} == {
+        (r, m) for r in ("typical", "specialist", "climber") for m in ("3d", "1d")}
+    assert all(r["solver_status"] == "Solve_Succeeded" for r in rows)
+    t = {(r["rider"], r["model"]): r for r in rows}
+    # (No rider order here: 0.8 km is a ~50 s sprint decided by W' and mass, not CP.)
+    for m in ("3d", "1d"):
+        assert 0 < t[("typical", m)]["descent_time_s"] < t[("typical", m)]["finish_time_s"]
+        assert 0 < t[("typical", m)]["climb_time_s"] < t[("typical", m)]["finish_time_s"]
+    # The 1D model takes the 14 m bend faster than the grip allows.
+    assert t[("typical", "1d")]["corner_time_s"] < t[("typical", "3d")]["corner_time_s"]
+
+
+def test_plan_cli_bad_settings(tmp_path: Path) -> None:
+    course = _yaml(tmp_path / "short.yaml", SHORT_COURSE)
+    # Zero critical power: a rider error, exit 1, one JSON error object.
+    rider = _yaml(tmp_path / "zero.yaml", {"critical_power_w": 0.0})
+    result = runner.invoke(app, ["plan", "--course", str(course), "--rider", str(rider),
+                                 "--json"])
+    _no_traceback(result)
+    assert result.exit_code == 1
+    err = json.loads(result.stdout)
+    assert err["type"] == "RiderError" and "critical_power_w" in err["error"]
+    # Road narrower than the bike: the OCP refuses it (SolveError invalid_input).
+    narrow = _yaml(tmp_path / "narrow.yaml", {**SHORT_COURSE, "width_left_m": 0.2,
+                                              "width_right_m": 0.2})
+    result = runner.invoke(app, ["plan", "--course", str(narrow), "--json"])
+    _no_traceback(result)
+    assert result.exit_code == 1
+    err = json.loads(result.stdout)
+    assert err["type"] == "SolveError" and "narrower than the bike" in err["error"]
+    # A rider too weak for a 30 % wall, default caps: a solver status, exit code 3.
+    wall = _yaml(tmp_path / "wall.yaml", {"name": "wall", "segments": [
+        {"type": "straight", "length_m": 100.0}, {"type": "straight", "length_m": 300.0,
+                                                  "grade_pct": 30.0}]})
+    weak = _yaml(tmp_path / "weak.yaml", {"critical_power_w": 60.0, "max_power_w": 200.0,
+                                          "w_prime_j": 2000.0})
+    result = runner.invoke(app, ["plan", "--course", str(wall), "--rider", str(weak),
+                                 "--model", "1d", "--json"])
+    _no_traceback(result)
+    assert result.exit_code == EXIT_NOT_CONVERGED
+    info = json.loads(result.stdout)
+    assert info["success"] is False and info["solver_status"] != "Solve_Succeeded"
+    assert info["iterations"] <= OcpSettings().max_iter

@@ -1,4 +1,10 @@
-"""`itt-planner plan` and `itt-planner compare-riders`: full-course OCP solves."""
+"""`itt-planner plan` and `itt-planner compare-riders`: full-course OCP solves.
+
+Exit codes of `plan`: 0 the solver converged; 1 unusable input (bad course, rider or
+settings: one `{"error", "type"}` JSON object with `--json`); 3 the solver stopped without
+converging (iteration/time cap, infeasible problem, e.g. a rider too weak for a wall): the
+plan's figures are still printed, with `solver_status` and `"success": false`.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +15,9 @@ from typing import Any
 import typer
 
 from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit
+
+#: Exit code of `plan` when the solver stopped without converging (module docstring).
+EXIT_NOT_CONVERGED = 3
 
 
 def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
@@ -66,10 +75,15 @@ def plan_cli(
     wind_kmh: float = typer.Option(0.0, "--wind-kmh", help="Wind speed (km/h)."),
     wind_from_deg: float = typer.Option(0.0, "--wind-from-deg",
                                         help="Direction the wind blows FROM (deg, 0 = North)."),
-    max_time_s: float = typer.Option(120.0, "--max-time-s", help="Solver time cap (s)."),
+    max_time_s: float = typer.Option(120.0, "--max-time-s", help="Solver CPU-time cap (s)."),
+    max_iter: int = typer.Option(400, "--max-iter", help="Solver iteration cap."),
     as_json: bool = JSON_OPTION,
 ) -> None:
-    """Solve the minimum-time pacing and cornering OCP over a whole course."""
+    """Solve the minimum-time pacing and cornering OCP over a whole course.
+
+    Exit code 0: converged; 1: unusable input; 3: the solver stopped at a cap or found
+    the problem infeasible (the figures are printed with that solver_status).
+    """
     from itt_planner.conditions import Conditions  # noqa: PLC0415
     from itt_planner.course_loader import load_course  # noqa: PLC0415
     from itt_planner.ocp import OcpSettings, solve_plan  # noqa: PLC0415
@@ -79,11 +93,14 @@ def plan_cli(
         built = load_course(course)
         conditions = Conditions.from_meteo(wind_kmh=wind_kmh, wind_from_deg=wind_from_deg, mu=mu)
         solved = solve_plan(built, load_rider(rider), conditions,
-                            OcpSettings(max_cpu_time_s=max_time_s), model=model)
+                            OcpSettings(max_cpu_time_s=max_time_s, max_iter=max_iter),
+                            model=model)
         result = plan_summary(solved, built)
         if output is not None:
             result["output"] = str(solved.save(output))
         emit(result, as_json, _human)
+    if not result["success"]:
+        raise typer.Exit(code=EXIT_NOT_CONVERGED)
 
 
 @app.command("compare-riders")
