@@ -18,11 +18,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 from dataclasses import dataclass, field
 from enum import Enum
 
 import casadi as ca
 import numpy as np
+from tqdm import tqdm
 
 from itt_planner.advice import Advice
 from itt_planner.conditions import GRAVITY_MPS2, Conditions
@@ -400,7 +402,7 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
                   scenario_settings: ScenarioSettings = ScenarioSettings(),
                   behaviour: RiderBehaviour = RiderBehaviour(),
                   dt_s: float = 0.1, max_time_s: float | None = None,
-                  t0_s: float = 0.0) -> SimResult:
+                  t0_s: float = 0.0, progress: bool = False) -> SimResult:
     """Ride `course` in closed loop; the planner believes `rider` and `conditions`.
 
     The truth differs by `scenario`. With `policy=replanned` the sensor samples feed a
@@ -408,7 +410,7 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
     advice the rider follows from the moment it is published; the other policies follow
     the full-course `plan` or constant CP and need no engine. The rider's noise and the
     sensors draw from `seed`, identically for every policy, so policies compare on the
-    same truth.
+    same truth. `progress` draws a bar over the distance on stderr.
 
     Raises:
         IttError: unknown scenario or policy name.
@@ -448,7 +450,10 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
     rows = []
     finish = math.nan
     y = np.zeros(4)
+    bar = tqdm(total=round(course.length_m), unit="m", desc=f"{scenario.value} {policy.value}",
+               disable=not progress, file=sys.stderr, leave=False)
     while t < limit:
+        bar.update(round(s) - bar.n)
         p_now = max(float(y[0]), 0.0)
         for smp in sens.sample(t, s, float(x[0]), float(x[4]), p_now):
             samples.append(smp)
@@ -497,6 +502,7 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
             rows.append((t, s, x[0], x[4], y[0], x[7] * truth_rider.w_prime_j, y[3]))
             break
         x, s, t, y = x_next, s_next, t + dt_s, np.asarray(y_next).ravel()
+    bar.close()
     arr = np.array(rows)
     return SimResult(
         scenario=scenario, policy=policy, t_s=arr[:, 0], s_m=arr[:, 1], n_m=arr[:, 2],

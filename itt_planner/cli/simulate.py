@@ -7,7 +7,7 @@ from typing import Any
 
 import typer
 
-from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit
+from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit, progress_enabled
 
 
 def _human(r: dict[str, Any]) -> str:
@@ -60,5 +60,6 @@ def simulate_cli(
         result = compare_policies(
             built, who, plan, scenario=scenario, seed=seed, conditions=conditions,
             engine_settings=EngineSettings(replan_period_s=replan_period_s,
-                                           horizon_m=horizon_m))
+                                           horizon_m=horizon_m),
+            progress=progress_enabled())
         emit(result, as_json, _human)
