@@ -75,11 +75,23 @@ log = logging.getLogger(__name__)
 #: (bench/results_horizon.md): median ~20 iterations instead of ~50 with IPOPT's defaults.
 _WARM_IPOPT = {"mu_init": 1e-4, "mu_strategy": "monotone", "warm_start_init_point": "yes",
                "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6,
-               "warm_start_slack_bound_push": 1e-6}
+               "warm_start_slack_bound_push": 1e-6, "nlp_scaling_method": "none"}
+#: Both without IPOPT's gradient-based NLP scaling: it divided the objective (slack and
+#: terminal penalties give gradients of 100-1000) by up to 10x, so the tolerance and the
+#: barrier acted on a different problem than the one the weights were tuned on; without
+#: it the whole verona-like sweep went from 95 % to 98 % usable replans and the p95
+#: latency from 387 to 246 ms (bench/results_horizon.md).
 #: The first replan (or one after a failure) starts from the full-course plan, which was
 #: solved with the roll dynamics: a larger barrier lets IPOPT move away from it (with the
 #: warm settings 1 of 12 verona-like windows failed, with these none).
-_COLD_IPOPT = {"mu_init": 1e-2, "mu_strategy": "monotone"}
+_COLD_IPOPT = {"mu_init": 1e-2, "mu_strategy": "monotone", "nlp_scaling_method": "none"}
+#: IPOPT statuses of a run stopped by the budget, whose last iterate may still be usable.
+_CAP_STATUSES = ("Maximum_Iterations_Exceeded", "Maximum_WallTime_Exceeded",
+                 "Maximum_CpuTime_Exceeded")
+#: Status of a budget-capped iterate that passed `HorizonPlanner.feasible` (success=True).
+SUBOPTIMAL_FEASIBLE = "Suboptimal_Feasible"
+#: W' (as E_n) a usable iterate may undershoot 0 by: IPOPT's bound relaxation only.
+_W_PRIME_TOL = 1e-6
 #: Loose bound on the relative heading (rad), as in the full-course OCP.
 _ALPHA_MAX_RAD = 1.0
 
@@ -108,6 +120,15 @@ class HorizonSettings:
         w_delta, w_power: objective weights w_1, w_2 (model.md section 5).
         warm_multipliers: also shift the previous multipliers (measured neutral).
         margin_m: distance kept from each road edge (C11).
+        feasible_tol: a budget-capped iterate is returned as success
+            ("Suboptimal_Feasible") when its continuity gaps, bounds and path-constraint
+            residuals are within this (state units: m, rad, m/s, E_n fractions).
+        grip_tol: ... and its path-constraint slacks (grip C16, pedalling C15) within
+            this beyond what the measured initial state already uses.
+        warm_share: share of `max_wall_time_s` given to the warm attempt; the rest is
+            the cold retry's (from the plan) when the warm attempt is not usable.
+        reset_after_failures: after this many unusable replans in a row the last good
+            solution is dropped and the next replan starts from the plan.
     """
 
     horizon_m: float = 1000.0
@@ -128,6 +149,10 @@ class HorizonSettings:
     w_delta: float = 0.01
     w_power: float = 0.01
     warm_multipliers: bool = False
+    feasible_tol: float = 1e-3
+    grip_tol: float = 0.02
+    warm_share: float = 0.6
+    reset_after_failures: int = 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -174,21 +199,32 @@ class HorizonPlanner:
         self._tr = transcribe(self._model, settings.n_intervals, substeps=settings.substeps,
                               soft=True, slack_weight=settings.slack_weight)
         opts = {**self._tr.derivatives,
-                "ipopt.max_iter": settings.max_iter, "ipopt.max_wall_time": settings.max_wall_time_s,
+                "ipopt.max_iter": settings.max_iter,
                 "ipopt.tol": settings.tol, "ipopt.acceptable_tol": 10 * settings.tol,
                 "ipopt.acceptable_iter": settings.acceptable_iter,
                 "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
                 "ipopt.linear_solver": "mumps",
                 "error_on_fail": False, "no_nlp_grad": True, "calc_lam_p": False}
-        # Two solvers over the same NLP and derivative Functions (building is cheap).
+        # Three solvers over the same NLP and derivative Functions (building is cheap):
+        # the budget is an IPOPT option, so the warm attempt and the cold retry after
+        # it get their shares of the wall time, a cold first start all of it.
+        budget = settings.max_wall_time_s
         self._solvers = {
             kind: ca.nlpsol(f"horizon_{kind}", "ipopt", self._tr.nlp,
-                            {**opts, **{f"ipopt.{k}": v for k, v in ipopt.items()}})
-            for kind, ipopt in (("warm", _WARM_IPOPT), ("cold", _COLD_IPOPT))}
+                            {**opts, "ipopt.max_wall_time": max(wall, 1e-3),
+                             **{f"ipopt.{k}": v for k, v in ipopt.items()}})
+            for kind, ipopt, wall in (
+                ("warm", _WARM_IPOPT, settings.warm_share * budget),
+                ("cold", _COLD_IPOPT, budget),
+                ("retry", _COLD_IPOPT, (1.0 - settings.warm_share) * budget))}
+        nlp = self._tr.nlp
+        self._g = ca.Function("horizon_g", [nlp["x"], nlp["p"]], [nlp["g"]])
+        self._path0 = self._model.path
         self._par = ModelParams(rider, conditions, settings.w_delta, settings.w_power).vector()
         self._spacing = target_spacing(course, settings.h_min_m, settings.h_max_m)
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._previous_mult: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._failures = 0
 
     # ---- window ---------------------------------------------------------------------------
     def window(self, s_m: float) -> np.ndarray:
@@ -312,47 +348,53 @@ class HorizonPlanner:
     def solve(self, state: RiderState) -> HorizonSolution:
         """Replan from `state`. Never raises on solver failure: `success=False` + status."""
         t0 = time.perf_counter()
+        st = self.settings
         s_est = float(state.s_m) if math.isfinite(state.s_m) else 0.0
         s0 = float(np.clip(s_est, 0.0, self.course.length_m - 1.0))
         nodes = self.window(s0)
         tr, lay, m = self._tr, self._tr.layout, self._model
         lbx, ubx, lbu, ubu = self._bounds(nodes, self.initial_state(state, s0))
         x0 = lbx[:, 0]
-        x_guess, u_guess, start = self._guess(nodes)
-        solver = self._solvers["warm" if start == "shifted" else "cold"]
-        if start == "plan":  # re-anchor the plan's W' at the rider's (a W' deficit)
-            ie = m.index("e_n")
-            deficit = x_guess[ie, 0] - x0[ie]
-            x_guess[ie] = np.clip(x_guess[ie] - deficit, 0.0, 1.0)
-        x_guess[:, 0] = x0
         end = nodes[-1]
         e_dev = x0[m.index("e_n")] - float(self.plan.at("e_n", s0))
         remaining = max(self.course.length_m - s0, 1.0)
         e_target = float(self.plan.at("e_n", end)) + e_dev * (self.course.length_m - end) / remaining
-        terminal = np.array([e_target, float(self.plan.at("v_mps", end)), self.settings.v_weight])
+        terminal = np.array([e_target, float(self.plan.at("v_mps", end)), st.v_weight])
         p = tr.params(road_data(self.course, nodes), self._par, terminal)
         lbw = lay.join(lbx, lbu, np.zeros((lay.ns, lay.n_intervals)), 0.0)
         ubw = lay.join(ubx, ubu, np.full((lay.ns, lay.n_intervals), np.inf), np.inf)
-        w0 = np.clip(lay.join(x_guess, u_guess), lbw, ubw)
-        try:
-            sol = solver(x0=w0, p=p, lbx=lbw, ubx=ubw, lbg=tr.lbg, ubg=tr.ubg,
-                            **(self._shift_multipliers(nodes) if start == "shifted" else {}))
-            stats = solver.stats()
-            w = np.asarray(sol["x"]).ravel()
-            success = bool(stats.get("success", False)) and bool(np.all(np.isfinite(w)))
-            status = str(stats.get("return_status", "unknown"))
-            iterations = int(stats.get("iter_count", 0))
-        except RuntimeError as err:  # an evaluation error inside CasADi: report, never raise
-            log.warning("horizon solve at s=%.0f m raised: %s", s0, err)
-            w, success, status, iterations = w0, False, f"error: {err}", 0
+        if self._failures >= st.reset_after_failures:
+            self.reset()  # the last good solution is too far behind to be a good start
+        x_guess, u_guess, start = self._guess(nodes)
+        kinds = ("warm", "retry") if start == "shifted" else ("cold",)
+        statuses, iterations = [], 0
+        for kind in kinds:
+            if kind == "retry":  # the plan re-anchored at the rider: a start from elsewhere
+                x_guess, u_guess = self._plan_guess(nodes)
+            if kind != "warm":  # re-anchor the plan's W' at the rider's (a W' deficit)
+                ie = m.index("e_n")
+                x_guess[ie] = np.clip(x_guess[ie] - (x_guess[ie, 0] - x0[ie]), 0.0, 1.0)
+            x_guess[:, 0] = x0
+            w0 = np.clip(lay.join(x_guess, u_guess), lbw, ubw)
+            w, success, status, its, mult = self._attempt(kind, w0, p, lbw, ubw, nodes)
+            iterations += its
+            statuses.append(status)
+            if success:
+                break
+            if its >= 1 and status in _CAP_STATUSES and self.feasible(w, p, lbw, ubw):
+                success, status = True, SUBOPTIMAL_FEASIBLE
+                statuses.append(status)
+                break
         x, u, _ = lay.split(w)
         dt, y = (np.asarray(a) for a in tr.evaluate(w, p))
         t = np.concatenate([[0.0], np.cumsum(dt.ravel())])
+        status = statuses[-1] if success else "; ".join(statuses)
         if success:
+            self._failures = 0
             self._previous = (nodes, x, u)
-            self._previous_mult = (nodes, np.asarray(sol["lam_x"]).ravel(),
-                                   np.asarray(sol["lam_g"]).ravel())
+            self._previous_mult = (nodes, *mult) if mult is not None else None
         else:
+            self._failures += 1
             log.warning("horizon solve at s=%.0f m: %s after %d iterations", s0, status,
                         iterations)
         e_j = x[m.index("e_n")] * self.rider.w_prime_j
@@ -365,7 +407,51 @@ class HorizonPlanner:
             predicted_finish_s=state.elapsed_s + float(t[-1]) + plan_rest_t,
             w_prime_finish_j=float(e_j[-1]) + plan_rest_w)
 
+    def _attempt(self, kind: str, w0: np.ndarray, p: np.ndarray, lbw: np.ndarray,
+                 ubw: np.ndarray, nodes: np.ndarray
+                 ) -> tuple[np.ndarray, bool, str, int, tuple[np.ndarray, np.ndarray] | None]:
+        """One IPOPT run: (iterate, converged, status, iterations, multipliers)."""
+        solver, tr = self._solvers[kind], self._tr
+        try:
+            sol = solver(x0=w0, p=p, lbx=lbw, ubx=ubw, lbg=tr.lbg, ubg=tr.ubg,
+                         **(self._shift_multipliers(nodes) if kind == "warm" else {}))
+        except RuntimeError as err:  # an evaluation error inside CasADi: report, never raise
+            log.warning("horizon solve (%s) raised: %s", kind, err)
+            return w0, False, f"error: {err}", 0, None
+        stats = solver.stats()
+        w = np.asarray(sol["x"]).ravel()
+        if not np.all(np.isfinite(w)):
+            return w0, False, "non-finite iterate", int(stats.get("iter_count", 0)), None
+        return (w, bool(stats.get("success", False)), str(stats.get("return_status", "unknown")),
+                int(stats.get("iter_count", 0)),
+                (np.asarray(sol["lam_x"]).ravel(), np.asarray(sol["lam_g"]).ravel()))
+
+    def feasible(self, w: np.ndarray, p: np.ndarray, lbw: np.ndarray, ubw: np.ndarray) -> bool:
+        """Whether an iterate is valid advice: dynamics, road, grip and W' respected.
+
+        Continuity gaps (E1-E9 integrated over each interval) within `feasible_tol`, the
+        simple bounds (road edges C11, W' >= 0 C12, actuators C13-C14) within
+        `feasible_tol`, the softened path constraints within `feasible_tol` of their
+        slacks, and the slacks themselves within `grip_tol` except where the measured
+        initial state already uses more (grip C16 <= 1 + `grip_tol` from the rider on).
+        """
+        st, lay = self.settings, self._tr.layout
+        if np.any(w < lbw - st.feasible_tol) or np.any(w > ubw + st.feasible_tol):
+            return False
+        g = np.asarray(self._g(w, p)).ravel()
+        if np.any(g < self._tr.lbg - st.feasible_tol) or np.any(g > self._tr.ubg + st.feasible_tol):
+            return False
+        x, _, slacks = lay.split(w)
+        if np.any(x[self._model.index("e_n")] < -_W_PRIME_TOL):
+            return False
+        if slacks.size == 0:
+            return True
+        raw = np.asarray(self._path0(x[:, 0], self._par)).ravel()
+        allowed = np.maximum(raw, 0.0)[:, None] + st.grip_tol
+        return bool(np.all(slacks <= allowed))
+
     def reset(self) -> None:
         """Forget the warm start (e.g. after a jump of the estimate)."""
         self._previous = None
         self._previous_mult = None
+        self._failures = 0
