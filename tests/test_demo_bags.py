@@ -1,0 +1,78 @@
+"""The demo ride logs in bags/: small, labelled SIMULATED, readable, and replayable."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+from itt_planner.ridelog import METADATA_NAME, read_ride_log
+from itt_planner.replay import replay_ride
+
+BAGS = Path(__file__).resolve().parents[1] / "bags"
+DEMO = {  # bag -> (course, rider)
+    "typical_verona-like.mcap": ("verona-like", "typical"),
+    "specialist_verona-like.mcap": ("verona-like", "specialist"),
+    "climber_verona-like.mcap": ("verona-like", "climber"),
+    "typical_rovereto-like.mcap": ("rovereto-like", "typical"),
+}
+
+
+def _stamps(path: Path, topic: str) -> list[float]:
+    return [stamp for name, stamp, _ in read_ride_log(path) if name == topic]
+
+
+@pytest.mark.parametrize("name", sorted(DEMO))
+def test_demo_bag_is_small_simulated_and_complete(name: str) -> None:
+    path = BAGS / name
+    assert path.stat().st_size <= 5 * 1024 * 1024
+    with path.open("rb") as fh:
+        meta = {m.name: m.metadata for m in make_reader(fh).iter_metadata()}
+    assert "SIMULATED" in meta[METADATA_NAME]["source"]
+    assert meta[METADATA_NAME]["rider"] == DEMO[name][1]
+    topics: dict[str, list[float]] = {}
+    for topic, stamp, sample in read_ride_log(path):
+        assert sample is not None
+        topics.setdefault(topic, []).append(stamp)
+    assert set(topics) == {"/itt/gps/fix", "/itt/speed", "/itt/power"}
+    duration = max(topics["/itt/gps/fix"]) - min(topics["/itt/gps/fix"])
+    assert duration > 15 * 60  # a whole time trial, not a snippet
+    for stamps in topics.values():  # 1 Hz sensors, no gaps
+        assert len(stamps) >= duration
+        assert max(b - a for a, b in zip(stamps, stamps[1:], strict=False)) <= 1.5
+
+
+def _assert_advice_covers_ride(out: Path, bag: Path, period_s: float) -> None:
+    fixes = _stamps(bag, "/itt/gps/fix")
+    advice = _stamps(out, "/itt/advice")
+    assert advice[0] - fixes[0] <= 2 * period_s + 5
+    assert fixes[-1] - advice[-1] <= 2 * period_s + 5
+    assert max(b - a for a, b in zip(advice, advice[1:], strict=False)) <= 2 * period_s
+
+
+def test_typical_demo_bag_replays_with_advice_for_the_whole_ride(tmp_path: Path) -> None:
+    """The `make demo` bag, replanned every 10 s of ride time to keep the suite quick."""
+    bag = BAGS / "typical_verona-like.mcap"
+    result = replay_ride(bag, "verona-like", "typical", output=tmp_path / "advice.mcap",
+                         replan_period_s=10.0, cache_dir=tmp_path / "cache")
+    assert not result.errors
+    assert result.advice_out >= result.ride_duration_s / 10 - 2
+    _assert_advice_covers_ride(tmp_path / "advice.mcap", bag, 10.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(DEMO))
+def test_every_demo_bag_replays_deterministically_at_1_hz(name: str, tmp_path: Path) -> None:
+    bag = BAGS / name
+    course, rider = DEMO[name]
+    payloads = []
+    for run in ("a", "b"):
+        out = tmp_path / f"{run}.mcap"
+        result = replay_ride(bag, course, rider, output=out, cache_dir=tmp_path / "cache")
+        assert not result.errors
+        _assert_advice_covers_ride(out, bag, 1.0)
+        with out.open("rb") as fh:
+            payloads.append([m.data for _, c, m in make_reader(fh).iter_messages()
+                             if c.topic == "/itt/advice"])
+    assert payloads[0] == payloads[1]
