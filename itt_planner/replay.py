@@ -305,13 +305,16 @@ def parse_speed(text: str) -> float | None:
 
 def replay_ride(log_path: str | Path, course_spec: str, rider_spec: str, *,
                 output: str | Path | None = None, rrd: str | Path | None = None,
+                rerun_sinks: tuple[str, ...] = (),
                 settings: ReplaySettings = ReplaySettings(), replan_period_s: float = 1.0,
                 horizon_m: float = 1000.0, model: str = "3d",
                 cache_dir: Path = Path(".itt_cache"), progress: bool = False) -> ReplayResult:
     """Load the course, rider and full-course plan, build the engine, and replay.
 
     The full-course plan comes from the plan cache (solved on the first run for this
-    course, rider and settings).
+    course, rider and settings). `rrd` saves a Rerun recording; `rerun_sinks` are more
+    Rerun destinations in `RerunSink.parse` form (`spawn`, `connect[:URL]`, `serve`), fed
+    live by the same stream.
 
     Raises:
         CourseError, RiderError, SolveError: the course, rider or plan is unusable.
@@ -342,11 +345,12 @@ def replay_ride(log_path: str | Path, course_spec: str, rider_spec: str, *,
                                                   deterministic=settings.deterministic))
     recorder = None
     rec = None
-    if rrd is not None:
+    sinks = ([f"file:{rrd}"] if rrd is not None else []) + list(rerun_sinks)
+    if sinks:
         from itt_planner.rerun_log import RideRecorder  # noqa: PLC0415
         from itt_planner.rerun_sink import RerunSink, open_recording  # noqa: PLC0415
 
-        rec = open_recording(RerunSink("file", str(rrd)))
+        rec = open_recording([RerunSink.parse(s) for s in sinks])
         recorder = RideRecorder(rec, course, rider, plan)
         recorder.log_course()
     metadata = {"input": str(log_path), "course": course_spec, "rider": rider_spec,

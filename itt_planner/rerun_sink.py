@@ -15,6 +15,7 @@ review can record side by side) wired to that sink, with the default blueprint.
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -83,34 +84,49 @@ class RerunSink:
         return self.kind == "serve"
 
 
-def open_recording(sink: RerunSink, *, app_id: str = "itt_planner",
+def open_recording(sinks: RerunSink | Sequence[RerunSink], *, app_id: str = "itt_planner",
                    recording_id: str | None = None) -> rr.RecordingStream:
-    """A new recording stream connected to `sink`, carrying the default blueprint.
+    """A new recording stream tee'd to every sink, carrying the default blueprint.
+
+    Several sinks serve the usual review-while-live case: watch the ride in a viewer
+    (`spawn`, `connect`, `serve`) and keep the `.rrd` for afterwards (`file`), from one
+    stream, so every log call is made once.
 
     Args:
-        sink: the destination.
+        sinks: one destination or several (`none` sinks are ignored).
         app_id: Rerun application id (recordings of one app share blueprints in the viewer).
         recording_id: fix it to merge several processes' logs into one recording.
 
     Raises:
-        IttError: the file cannot be created or the viewer cannot be spawned.
+        IttError: a file cannot be created or the viewer cannot be spawned.
     """
-    rec = rr.RecordingStream(app_id, recording_id=recording_id,
-                             default_enabled=sink.kind != "none")
-    blueprint = default_blueprint()
+    wanted = [sinks] if isinstance(sinks, RerunSink) else list(sinks)
+    live = [s for s in wanted if s.kind != "none"]
+    rec = rr.RecordingStream(app_id, recording_id=recording_id, default_enabled=bool(live))
+    if not live:
+        return rec
+    targets: list[rr.FileSink | rr.GrpcSink | rr.GrpcServerSink] = []
+    servers: list[tuple[RerunSink, rr.GrpcServerSink]] = []
     try:
-        if sink.kind == "file":
-            path = Path(sink.target)
-            path.parent.mkdir(parents=True, exist_ok=True)
-            rec.save(path, default_blueprint=blueprint)
-        elif sink.kind == "spawn":
-            rec.spawn(default_blueprint=blueprint)
-        elif sink.kind == "connect":
-            rec.connect_grpc(sink.target or None, default_blueprint=blueprint)
-        elif sink.kind == "serve":
-            uri = rec.serve_grpc(grpc_port=sink.grpc_port, default_blueprint=blueprint)
-            rr.serve_web_viewer(web_port=sink.web_port, open_browser=False, connect_to=uri)
-            log.info("Rerun web viewer at %s (gRPC %s)", sink.web_viewer_url, uri)
+        for sink in live:
+            if sink.kind == "file":
+                path = Path(sink.target)
+                path.parent.mkdir(parents=True, exist_ok=True)
+                targets.append(rr.FileSink(path))
+            elif sink.kind == "spawn":
+                rr.spawn(port=DEFAULT_GRPC_PORT, connect=False)
+                targets.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{DEFAULT_GRPC_PORT}/proxy"))
+            elif sink.kind == "connect":
+                targets.append(rr.GrpcSink(sink.target or None))
+            else:  # serve
+                server = rr.GrpcServerSink(port=sink.grpc_port)
+                servers.append((sink, server))
+                targets.append(server)
+        rec.set_sinks(*targets, default_blueprint=default_blueprint())
+        for sink, server in servers:
+            rr.serve_web_viewer(web_port=sink.web_port, open_browser=False, connect_to=server.uri)
+            log.info("Rerun web viewer at %s (gRPC %s)", sink.web_viewer_url, server.uri)
     except (OSError, RuntimeError, ValueError) as err:
-        raise IttError(f"rerun sink {sink}: {err}") from err
+        names = ", ".join(str(s) for s in live)
+        raise IttError(f"rerun sink {names}: {err}") from err
     return rec

@@ -290,3 +290,17 @@ def test_none_sink_records_nothing(tmp_path: Path) -> None:
     recorder.log_course()
     recorder.log_power(PowerReading(1.0, 300.0))  # a no-op, no error
     assert isinstance(rec, rr.RecordingStream)
+
+
+def test_one_stream_tees_to_several_sinks(tmp_path: Path) -> None:
+    """Live viewer + review file from one stream: both sinks receive every row."""
+    paths = [tmp_path / "a.rrd", tmp_path / "b.rrd"]
+    rec = open_recording([RerunSink.parse(f"file:{p}") for p in paths])
+    recorder = RideRecorder(rec, make_course(), RIDER, None)
+    recorder.log_power(PowerReading(2.0, 300.0))
+    recorder.log_power(PowerReading(3.0, 310.0))
+    rec.flush()
+    rec.disconnect()
+    for path in paths:
+        store = RrdReader(path).store().stream().collect()
+        assert scalars(store, "ride_time", "/plots/power/actual")[1].tolist() == [300.0, 310.0]

@@ -57,6 +57,9 @@ def replay_cli(
     out: Path | None = typer.Option(None, "--out",
                                     help="Output MCAP: inputs + advice + diagnostics."),
     rrd: Path | None = typer.Option(None, "--rrd", help="Rerun recording of the replay (.rrd)."),
+    rerun: list[str] = typer.Option(
+        [], "--rerun", help="Also stream to Rerun live: spawn | connect[:URL] | serve "
+                            "(repeatable)."),
     speed: str = typer.Option("max", "--speed", help="'max', or a multiple of real time (1, 10)."),
     replan_period: float = typer.Option(1.0, "--replan-period",
                                         help="Stamp time between replans (s)."),
@@ -79,7 +82,8 @@ def replay_cli(
             settings = ReplaySettings(speed=parse_speed(speed), deterministic=not live_timing)
         except ValueError as err:
             raise IttError(str(err)) from None
-        result = replay_ride(log, course, rider, output=out, rrd=rrd, settings=settings,
+        result = replay_ride(log, course, rider, output=out, rrd=rrd, rerun_sinks=tuple(rerun),
+                             settings=settings,
                              replan_period_s=replan_period, horizon_m=horizon_m, model=model,
                              cache_dir=cache_dir, progress=progress_enabled()).as_dict()
     emit(result, as_json, _human_replay)
