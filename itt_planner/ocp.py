@@ -50,14 +50,15 @@ U_W_MAX = 50.0
 V_MIN_MPS = 0.5
 #: Interval length (m) above which the RK4 integrator takes several substeps.
 _SUBSTEP_M = 4.0
-#: IPOPT's bound_push = bound_frac: how far the initial point is moved inside its bounds.
-#: IPOPT's 1e-2 is the best first try for the 3D model (verona-like: 75 iterations vs 116
-#: at 1e-4, and 1e-4 ended 0.08 % slower in another local optimum); the 1D model converges
-#: in fewer iterations at 1e-4 (43 -> 34 on verona-like, same optimum).
-_BOUND_PUSH = {"3d": 1e-2, "1d": 1e-4}
-#: A 3D solve that ends in one of these statuses is restarted once with the 1D push:
-#: measured on short courses (0.6-0.8 km, typical and climber riders), IPOPT's default
-#: push ended in Restoration_Failed where 1e-4 converged in 39-64 iterations.
+#: IPOPT's bound_push = bound_frac (how far the initial point is moved inside its
+#: bounds): IPOPT's default 1e-2 first. 1e-4 took 116 instead of 75 iterations on
+#: verona-like 3D (and ended 0.08 % slower, in another local optimum), and 127 instead of
+#: 61 on rovereto-like 1D (34 instead of 43 on verona-like 1D).
+_BOUND_PUSH = 1e-2
+#: A solve that ends in one of these statuses is restarted once with this push: on
+#: short courses (0.6-0.8 km, typical and climber riders) the 3D model ended in
+#: Restoration_Failed with the default push and converged in 39-64 iterations with it.
+_RETRY_BOUND_PUSH = 1e-4
 _RETRY_STATUSES = ("Restoration_Failed", "Error_In_Step_Computation",
                    "Infeasible_Problem_Detected")
 
@@ -214,7 +215,7 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     """Solve the minimum-time OCP over the whole course and return the `Plan`.
 
     A solve that does not converge (iteration/time cap, infeasible) still returns a Plan,
-    with `solver_status` saying so. A 3D solve that fails early (`_RETRY_STATUSES`) is
+    with `solver_status` saying so. A solve that fails early (`_RETRY_STATUSES`) is
     restarted once from the same guess with a smaller bound push, so the worst case is
     twice the iteration/time cap.
 
@@ -231,7 +232,7 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     n = len(nodes) - 1
     substeps = substeps_for(float(np.max(np.diff(nodes)))) if model == "3d" else 1
     caps = (settings.jit, settings.max_iter, settings.max_cpu_time_s, settings.tol)
-    tr, solver = _solver(model, settings.wprime_model, n, substeps, *caps, _BOUND_PUSH[model])
+    tr, solver = _solver(model, settings.wprime_model, n, substeps, *caps, _BOUND_PUSH)
     spm = tr.model
     par = ModelParams(rider, conditions, settings.w_delta, settings.w_power).vector()
     v0 = start_speed(rider, conditions, settings)
@@ -247,10 +248,10 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     stats = solver.stats()
     status = str(stats.get("return_status", "unknown"))
     iterations = int(stats.get("iter_count", 0))
-    if status in _RETRY_STATUSES and _BOUND_PUSH[model] != _BOUND_PUSH["1d"]:
+    if status in _RETRY_STATUSES:
         log.info("full-course %s OCP on %s: %s, restarting with a smaller bound push",
                  model, course.name, status)
-        _, solver = _solver(model, settings.wprime_model, n, substeps, *caps, _BOUND_PUSH["1d"])
+        _, solver = _solver(model, settings.wprime_model, n, substeps, *caps, _RETRY_BOUND_PUSH)
         sol = solver(**args)
         stats = solver.stats()
         status = str(stats.get("return_status", "unknown"))
