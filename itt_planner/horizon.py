@@ -30,7 +30,10 @@ Design choices:
   get penalised slacks, so a measured state that already violates them (GPS noise,
   a rider off the plan) never makes the NLP infeasible. Road edges (C11), W' >= 0 (C12)
   and the actuator bounds stay hard: the initial state is clipped into them, and since
-  braking is always allowed (`W_n = -1` costs no W'), a feasible point always exists.
+  braking is always allowed (`W_n = -1` costs no W'), a feasible point exists - once
+  the measured power is capped so that ramping it down to CP at the fastest allowed
+  rate fits into the W' left (`initial_state`): a rider measured at W' = 0 far above CP
+  otherwise made W' < 0 unavoidable in the first interval (seen near the finish).
 - Terminal treatment: the rest of the course is represented by the full-course plan.
   The W' the rider may arrive with at the horizon end is the plan's W' there, shifted
   by the rider's current deviation from the plan scaled by the share of the remaining
@@ -41,11 +44,28 @@ Design choices:
   faster horizon. The speed at the horizon end is pulled to the plan's speed there
   (quadratic, `v_weight`), because kinetic energy carried over the horizon end is worth
   time later; without it the horizon would coast to a crawl at its end.
-- Warm start from the previous successful solution shifted in `s` (interpolated onto
-  the new nodes, the plan beyond its end), re-anchored at the measured state; measured
-  options in bench/results_horizon.md. A failed solution is never reused as a start.
-- Hard caps: `max_iter` and `max_wall_time_s`; a failure returns `success=False` with
-  IPOPT's status and never raises.
+- Warm start from the previous usable solution shifted in `s` (interpolated onto the
+  new nodes, the plan beyond its end), re-anchored at the measured state; measured
+  options in bench/results_horizon.md. An unusable iterate is never reused as a start:
+  after a failed replan the next one again starts from the last usable solution, and
+  only after `reset_after_failures` failures in a row from the plan.
+- Two attempts within one budget: the warm attempt gets `warm_share` of the wall time;
+  if its result is not usable, a cold attempt from the plan (larger barrier) gets the
+  rest. A first replan (or one after a reset) is a single cold attempt with all of it.
+- Real-time iteration idea, with IPOPT: an attempt stopped by the iteration or wall-time
+  cap is still returned as success, status "Suboptimal_Feasible", when its iterate
+  passes `feasible` - continuity gaps and bounds within `feasible_tol`, W' >= 0, grip
+  and pedalling limits within `grip_tol`. Why: a trajectory that starts at the rider,
+  obeys the dynamics, stays on the road, within grip and never empties W' below 0 is
+  valid advice, while dropping it leaves the rider with older advice from a stale
+  state. Measured on the verona-like sweep (bench/results_horizon.md, 6 such replans
+  re-solved to convergence): window time +0.0 to +1.0 s of ~70 s, target power within
+  18 W. The soft terminal W' target is not part of the check: one capped iterate was
+  1.0 s faster than the optimum by ending its window 2.8 kJ below that target (W' still
+  >= 0; the next replan, from the measured W', prices the deficit again).
+  Capped iterates that are not yet feasible (open continuity gaps) are failures.
+- Hard caps: `max_iter` and `max_wall_time_s` (per attempt, shared as above); a failure
+  returns `success=False` with IPOPT's status per attempt and never raises.
 """
 
 from __future__ import annotations
@@ -219,7 +239,6 @@ class HorizonPlanner:
                 ("retry", _COLD_IPOPT, (1.0 - settings.warm_share) * budget))}
         nlp = self._tr.nlp
         self._g = ca.Function("horizon_g", [nlp["x"], nlp["p"]], [nlp["g"]])
-        self._path0 = self._model.path
         self._par = ModelParams(rider, conditions, settings.w_delta, settings.w_power).vector()
         self._spacing = target_spacing(course, settings.h_min_m, settings.h_max_m)
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -254,11 +273,19 @@ class HorizonPlanner:
         alpha = math.remainder(heading - theta, 2 * math.pi)
         v = max(float(state.speed_mps), 1.0) if math.isfinite(state.speed_mps) else 1.0
         power = float(state.power_w) if math.isfinite(state.power_w) else 0.0
+        w_prime = float(np.clip(state.w_prime_j, 0.0, r.w_prime_j)) if math.isfinite(
+            state.w_prime_j) else 0.0
+        # Above CP, W' drains while the power ramps down at the fastest rate the NLP
+        # allows (C13 with the E6 rate): (P - CP)^2 / (2 rate) must fit into the W' left,
+        # or W' >= 0 (C12, a hard bound) makes the NLP infeasible - a rider measured at
+        # W' = 0 while riding far above CP (the estimate says: exhausted) would get no
+        # advice at all. Half of that margin covers the E9 smoothing and the RK4 step.
+        rate_wps = r.power_rate_max_wps * U_W_MAX
+        power = min(power, r.critical_power_w + math.sqrt(rate_wps * w_prime))
         if power >= 0:
             w_n = power / r.max_power_w
         else:
             w_n = power / (self.conditions.mu_x * GRAVITY_MPS2 * r.mass_kg * v)
-        w_prime = state.w_prime_j if math.isfinite(state.w_prime_j) else 0.0
         x0[m.index("n")] = state.n_m if math.isfinite(state.n_m) else 0.0
         x0[m.index("alpha")] = np.clip(alpha, -0.5, 0.5)
         x0[m.index("v")] = v
@@ -429,26 +456,29 @@ class HorizonPlanner:
     def feasible(self, w: np.ndarray, p: np.ndarray, lbw: np.ndarray, ubw: np.ndarray) -> bool:
         """Whether an iterate is valid advice: dynamics, road, grip and W' respected.
 
-        Continuity gaps (E1-E9 integrated over each interval) within `feasible_tol`, the
-        simple bounds (road edges C11, W' >= 0 C12, actuators C13-C14) within
-        `feasible_tol`, the softened path constraints within `feasible_tol` of their
-        slacks, and the slacks themselves within `grip_tol` except where the measured
-        initial state already uses more (grip C16 <= 1 + `grip_tol` from the rider on).
+        The continuity gaps (E1-E9 integrated over each interval) and the simple bounds
+        (road edges C11, W' >= 0 C12, actuators C13-C14) within `feasible_tol`, W' not
+        below 0 beyond IPOPT's bound relaxation, and the path constraints themselves
+        (grip C16, pedalling C15; their slacks only make the NLP solvable) within
+        `grip_tol` of their limit or of what the measured initial state already uses.
+        The soft terminal W' target is not checked: it is a price, not a safety limit.
         """
-        st, lay = self.settings, self._tr.layout
+        st, tr, lay = self.settings, self._tr, self._tr.layout
         if np.any(w < lbw - st.feasible_tol) or np.any(w > ubw + st.feasible_tol):
-            return False
-        g = np.asarray(self._g(w, p)).ravel()
-        if np.any(g < self._tr.lbg - st.feasible_tol) or np.any(g > self._tr.ubg + st.feasible_tol):
             return False
         x, _, slacks = lay.split(w)
         if np.any(x[self._model.index("e_n")] < -_W_PRIME_TOL):
             return False
-        if slacks.size == 0:
-            return True
-        raw = np.asarray(self._path0(x[:, 0], self._par)).ravel()
-        allowed = np.maximum(raw, 0.0)[:, None] + st.grip_tol
-        return bool(np.all(slacks <= allowed))
+        g = np.asarray(self._g(w, p)).ravel()
+        n_gap, n_path = lay.nx * lay.n_intervals, lay.n_path * lay.n_nodes
+        if np.any(np.abs(g[:n_gap]) > st.feasible_tol):
+            return False
+        # g_path = path - slack per node (the final node shares the last stage's slacks).
+        path = g[n_gap: n_gap + n_path].reshape(lay.n_nodes, lay.n_path).T
+        if slacks.size:
+            path = path + np.hstack([slacks, slacks[:, -1:]])
+        allowed = np.maximum(path[:, :1], 0.0) + st.grip_tol
+        return bool(np.all(path <= allowed))
 
     def reset(self) -> None:
         """Forget the warm start (e.g. after a jump of the estimate)."""
