@@ -1,4 +1,8 @@
-"""The static report: HTML with embedded figures, PNG, and the `report` command."""
+"""The static report: HTML with embedded figures, PNG, and the `report` command.
+
+Plans use the synthetic course; rides replay the demo bag (replanned every 20 s of ride
+time against the 1D plan, solved into a temporary cache, to keep the module quick).
+"""
 
 from __future__ import annotations
 
@@ -19,6 +23,11 @@ from itt_planner.course import Course
 from itt_planner.errors import IttError
 from itt_planner.plan import Plan
 from itt_planner.report import render_html, rider_from_plan, summary, write_report
+from itt_planner.replay import replay_ride
+from itt_planner.ride_report import load_ride_trace
+from itt_planner.ridelog import read_ride_log
+
+DEMO_BAG = Path(__file__).parents[1] / "bags" / "typical_verona-like.mcap"
 
 
 @pytest.fixture(scope="module")
@@ -99,10 +108,6 @@ def test_cli_report_errors(plan: Plan, tmp_path: Path) -> None:
                                  "--json"])
     assert result.exit_code == 1
     assert "synthetic-corner" in json.loads(result.stdout)["error"]
-    log = tmp_path / "ride.mcap"
-    log.write_bytes(b"")
-    result = runner.invoke(app, ["report", str(log), "-o", str(tmp_path / "r.html")])
-    assert result.exit_code == 1 and "not supported yet" in result.output
 
 
 def test_demo_course_named_in_plan_header(tmp_path: Path) -> None:
@@ -117,3 +122,82 @@ def test_demo_course_named_in_plan_header(tmp_path: Path) -> None:
     result = CliRunner().invoke(app, ["report", str(plan_path), "-o", str(out)])
     assert result.exit_code == 0, result.output
     assert "verona-like" in result.stdout and Image.open(out).format == "PNG"
+
+
+@pytest.fixture(scope="module")
+def replayed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, float]:
+    """(replay output, plan cache, ride duration) of the typical rider's demo bag."""
+    tmp = tmp_path_factory.mktemp("ride")
+    out, cache = tmp / "replayed.mcap", tmp / "cache"
+    result = replay_ride(DEMO_BAG, "verona-like", "typical", output=out, replan_period_s=20.0,
+                         model="1d", cache_dir=cache)
+    assert result.errors == [] and result.advice_out > 50
+    return out, cache, result.ride_duration_s
+
+
+def test_ride_report_html_compares_the_ride_with_the_plan(replayed: tuple, tmp_path: Path
+                                                          ) -> None:
+    log, cache, duration_s = replayed
+    out = tmp_path / "ride.html"
+    result = CliRunner().invoke(app, ["report", str(log), "-o", str(out), "--cache-dir",
+                                      str(cache), "--json"])
+    assert result.exit_code == 0, result.output
+    table = json.loads(result.stdout)
+    # Course, rider and model come from the replay's metadata.
+    assert (table["course"], table["rider"], table["model"]) == ("verona-like", "typical", "1d")
+    power = [p.power_w for topic, _, p in read_ride_log(log) if topic == "/itt/power"]
+    assert table["average_power_w"] == pytest.approx(np.mean(power), abs=1.0)
+    assert table["max_power_w"] == pytest.approx(max(power), abs=0.1)
+    # The simulated rider stops logging at the finish line.
+    assert table["finish_time_s"] == pytest.approx(duration_s, abs=5.0)
+    assert table["finish_vs_plan_s"] == pytest.approx(
+        table["finish_time_s"] - table["plan_finish_time_s"], abs=0.02)
+    advice = [a for topic, _, a in read_ride_log(log) if topic == "/itt/advice"]
+    assert table["advice"] == len(advice)
+    assert table["fallbacks"] == sum(a.fallback for a in advice)
+    assert sum(table["solver_status"].values()) == len(advice)
+    page = out.read_text()
+    assert "ride report" in page and "fallbacks" in page
+    assert not re.search(r"(src|href)=[\"']?https?:", page)  # nothing to fetch
+    images = embedded_images(page)
+    assert len(images) == 1 + 3  # the ride overview + three corners with the GPS fixes
+    for image in images:
+        assert np.asarray(image.convert("L"), dtype=float).std() > 10
+
+
+def test_ride_trace_places_samples_by_distance(replayed: tuple) -> None:
+    trace = load_ride_trace(replayed[0])
+    assert trace.duration_s == pytest.approx(replayed[2])
+    # Distance never runs backwards in time and covers the course (16.8 km).
+    assert np.all(np.diff(trace.power_s_m) >= 0) and trace.power_s_m[-1] > 16_700
+    assert len(trace.power_w) == len(trace.power_s_m) == len(trace.gps_s_m)
+    assert trace.metadata["input"] == str(DEMO_BAG)
+
+
+def test_ride_report_png(replayed: tuple, tmp_path: Path) -> None:
+    log, cache, _ = replayed
+    out = tmp_path / "ride.png"
+    result = CliRunner().invoke(app, ["report", str(log), "-o", str(out), "--cache-dir",
+                                      str(cache)])
+    assert result.exit_code == 0, result.output
+    assert "fallbacks" in result.stdout
+    image = Image.open(out)
+    assert image.format == "PNG" and image.height > image.width
+
+
+def test_raw_and_bad_logs_are_refused_by_name(tmp_path: Path) -> None:
+    runner = CliRunner()
+    out = str(tmp_path / "r.html")
+    # A raw input log (no advice): it must be replayed first.
+    result = runner.invoke(app, ["report", str(DEMO_BAG), "-o", out, "--json"])
+    assert result.exit_code == 1 and isinstance(result.exception, SystemExit)
+    error = json.loads(result.stdout)["error"]
+    assert str(DEMO_BAG) in error and "itt-planner replay" in error
+    with pytest.raises(IttError, match="no advice"):
+        load_ride_trace(DEMO_BAG)
+    # Not an MCAP file at all.
+    bogus = tmp_path / "ride.mcap"
+    bogus.write_text("not a log")
+    result = runner.invoke(app, ["report", str(bogus), "-o", out])
+    assert result.exit_code == 1 and str(bogus) in result.output
+    assert "Traceback" not in result.output
