@@ -4,8 +4,9 @@ Replans every `--step` metres of course (about 3-7 replan periods at race speed)
 the full-course plan's state there, perturbed (speed x N(1, 3 %), line +- N(0, 0.3 m),
 W' - U(0, 1500 J); seeded), first with the warm start (previous solution shifted), then
 the same states cold (warm start reset each time). Prints median / p95 / max latency,
-iterations and success per horizon, and the ratio against re-solving the whole
-remaining course with `ocp.solve_plan` (measured on two states only: ~30 s each).
+iterations and usable replans (success within the engine's 1 s overrun limit; budget-
+capped "Suboptimal_Feasible" iterates counted separately) per horizon, and the ratio
+against re-solving the whole remaining course with `ocp.solve_plan` (two states only).
 Run: .venv/bin/python bench/bench_horizon.py [--course verona-like] [--horizon 1000 500]
 """
 
@@ -81,7 +82,8 @@ def main() -> None:
             print(f"H={horizon:.0f} m {mode}: {len(states)} replans, median {1000 * np.median(lat_a):.0f} ms, "
                   f"p95 {1000 * np.percentile(lat_a, 95):.0f} ms, max {1000 * lat_a.max():.0f} ms, "
                   f"over 1 s: {(lat_a > 1).sum()}, median it {np.median(its):.0f}, "
-                  f"usable {ok}/{len(states)} ({100 * ok / len(states):.1f} %, {subopt} suboptimal), "
+                  f"usable {ok}/{len(states)} ({100 * ok / len(states):.1f} %, "
+                  f"{subopt} suboptimal), "
                   f"min W' {wmin:.1f} J", flush=True)
     base = []
     for frac in (0.25, 0.5)[: args.baseline]:

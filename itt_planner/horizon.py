@@ -385,7 +385,8 @@ class HorizonPlanner:
         end = nodes[-1]
         e_dev = x0[m.index("e_n")] - float(self.plan.at("e_n", s0))
         remaining = max(self.course.length_m - s0, 1.0)
-        e_target = float(self.plan.at("e_n", end)) + e_dev * (self.course.length_m - end) / remaining
+        beyond = (self.course.length_m - end) / remaining
+        e_target = float(self.plan.at("e_n", end)) + e_dev * beyond
         terminal = np.array([e_target, float(self.plan.at("v_mps", end)), st.v_weight])
         p = tr.params(road_data(self.course, nodes), self._par, terminal)
         lbw = lay.join(lbx, lbu, np.zeros((lay.ns, lay.n_intervals)), 0.0)
