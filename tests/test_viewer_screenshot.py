@@ -1,10 +1,20 @@
 """Serve a ride recording to Rerun's web viewer and screenshot it with headless Chromium.
 
 Marked `screenshot` (excluded by default): it installs Debian's `chromium` if missing and
-takes ~70 s
-(ITT_SCREENSHOT_WAIT_S, default 60: the software-rendered viewer ingests ~4 MB slowly). All traffic stays on loopback: Chromium's resolver maps every other host to
+takes ~70 s (ITT_SCREENSHOT_WAIT_S, default 60: the software-rendered viewer ingests ~4 MB
+slowly). All traffic stays on loopback: Chromium's resolver maps every other host to
 NOTFOUND (so the map view draws without tiles). Set ITT_SCREENSHOT_OUT=path.png to keep
-the image (bench/rerun_viewer.png in the README comes from here).
+the image (cropped to the viewer). By default the recording is a synthetic ride logged
+in-process; ITT_SCREENSHOT_RRD=ride.rrd serves a saved recording instead, compacted first
+(`rerun rrd optimize`: the viewer ingests a few large chunks much faster than thousands
+of small ones) and served by the `rerun` CLI. bench/rerun_viewer.png in the README is a
+full demo replay, made so:
+
+    .venv/bin/itt-planner replay bags/typical_verona-like.mcap --course verona-like \
+        --rider typical --rrd /tmp/review.rrd --replan-period 5 --live-timing
+    ITT_SCREENSHOT_RRD=/tmp/review.rrd ITT_SCREENSHOT_WAIT_S=100 \
+        ITT_SCREENSHOT_OUT=bench/rerun_viewer.png .venv/bin/python -m pytest \
+        tests/test_viewer_screenshot.py -m screenshot
 """
 
 from __future__ import annotations
@@ -21,7 +31,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from PIL import Image
+import rerun_cli
+from PIL import Image, ImageOps
 from synthetic_ride import RIDER, make_plan, make_ride
 from test_rerun import record
 
@@ -85,8 +96,16 @@ def _wrapper_server(viewer_url: str, delay_s: float) -> http.server.ThreadingHTT
 
 
 @pytest.fixture
-def served_ride() -> Iterator[RerunSink]:
+def viewer_url(tmp_path: Path) -> Iterator[str]:
+    """The web viewer's page, showing ITT_SCREENSHOT_RRD or else a synthetic ride."""
     sink = RerunSink(kind="serve", web_port=_free_port(), grpc_port=_free_port())
+    if rrd := os.environ.get("ITT_SCREENSHOT_RRD"):
+        yield from _serve_file(Path(rrd), sink, tmp_path)
+    else:
+        yield from _serve_synthetic(sink)
+
+
+def _serve_synthetic(sink: RerunSink) -> Iterator[str]:
     rec = open_recording(sink)
     # The demo course: ~21 min of synthetic ride (plan and samples from synthetic_ride).
     course = load_course("verona-like")
@@ -95,13 +114,38 @@ def served_ride() -> Iterator[RerunSink]:
     recorder.log_course()
     record(recorder, make_ride(course, plan, rate_hz=2.0))
     rec.flush()
-    yield sink
+    yield sink.web_viewer_url
     rec.disconnect()
 
 
-def test_web_viewer_screenshot_is_not_blank(served_ride: RerunSink, tmp_path: Path) -> None:
+def _serve_file(rrd: Path, sink: RerunSink, tmp_path: Path) -> Iterator[str]:
+    # The binary itself, not the `rerun` wrapper script: terminate() must reach the server.
+    binary = str(Path(rerun_cli.__file__).parent / "rerun")
+    compact = tmp_path / "compact.rrd"
+    subprocess.run([binary, "rrd", "optimize", str(rrd), "-o", str(compact)], check=True,
+                   capture_output=True)
+    server = subprocess.Popen(
+        [binary, str(compact), "--serve-web", "--bind", "127.0.0.1", "--port",
+         str(sink.grpc_port), "--web-viewer-port", str(sink.web_port)],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 30
+        while True:
+            try:
+                socket.create_connection(("127.0.0.1", sink.web_port), timeout=1).close()
+                break
+            except OSError:
+                assert time.monotonic() < deadline, "rerun --serve-web did not start"
+                time.sleep(0.2)
+        yield sink.web_viewer_url
+    finally:
+        server.terminate()
+        server.wait(timeout=10)
+
+
+def test_web_viewer_screenshot_is_not_blank(viewer_url: str, tmp_path: Path) -> None:
     chromium = _chromium()
-    wrapper = _wrapper_server(served_ride.web_viewer_url, VIEWER_LOAD_S)
+    wrapper = _wrapper_server(viewer_url, VIEWER_LOAD_S)
     shot = tmp_path / "viewer.png"
     try:
         subprocess.run([
@@ -123,4 +167,6 @@ def test_web_viewer_screenshot_is_not_blank(served_ride: RerunSink, tmp_path: Pa
     orange = np.abs(image - ORANGE).max(axis=2) < 40
     assert orange.sum() > 500, "no data drawn (orange series/track missing)"
     if out := os.environ.get("ITT_SCREENSHOT_OUT"):
-        shutil.copyfile(shot, out)
+        # Without the white band Chromium leaves below the viewer.
+        page = Image.open(shot).convert("RGB")
+        page.crop(ImageOps.invert(page).getbbox()).save(out)
