@@ -165,7 +165,8 @@ def main() -> None:
         results[f"{name}/baseline"] = base
     if args.mesh_study:
         fine = run(_solve_case, ("verona-like", None, "3d", 1,
-                                 {"uniform_m": 1.0, "max_cpu_time_s": 3600.0}))
+                                 {"uniform_m": 1.0, "max_iter": 1500,
+                                  "max_cpu_time_s": 3600.0}))
         ref = results.get("verona-like/3d") or run(_solve_case, ("verona-like", None, "3d", 1, {}))
         print(f"mesh study verona-like 3D: uniform 1 m: {fmt(fine)}\n  non-uniform "
               f"{ref['finish_s']:.2f} s vs uniform 1 m {fine['finish_s']:.2f} s: "

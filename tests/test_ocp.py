@@ -214,8 +214,10 @@ def test_non_uniform_mesh_matches_uniform_1m_on_verona(verona: Course,
                                                       verona_plans: dict[str, Plan]) -> None:
     """Mesh bar: the non-uniform mesh's finish time within 0.3 % of a uniform 1 m mesh
     (also measured in bench/bench_ocp.py --mesh-study)."""
-    fine = solve_plan(verona, PRESETS["typical"], settings=OcpSettings(uniform_m=1.0,
-                                                                       max_cpu_time_s=1800.0))
+    # At the default 400-iteration cap the 16,801-node solve stopped unconverged
+    # (bench/results_ocp.md), hence the higher caps.
+    fine = solve_plan(verona, PRESETS["typical"], settings=OcpSettings(
+        uniform_m=1.0, max_iter=1500, max_cpu_time_s=3600.0))
     assert fine.meta["success"], fine.solver_status
     assert verona_plans["3d"].finish_time_s == pytest.approx(fine.finish_time_s, rel=0.003)
 
