@@ -227,8 +227,8 @@ def test_non_uniform_mesh_matches_uniform_1m_on_verona(verona: Course,
 SHORT_COURSE = {
     "name": "short", "width_left_m": 4.0, "width_right_m": 4.0,
     "segments": [
-        # With a 250 m first straight IPOPT ended in Restoration_Failed for two of the
-        # three riders (bench/results_ocp.md, open robustness issue): 500 m converges.
+        # With a 250 m first straight two of the three riders need solve_plan's restart
+        # after Restoration_Failed (bench/results_ocp.md); 500 m converges at once.
         {"type": "straight", "length_m": 500.0, "grade_pct": 2.0},
         {"type": "clothoid", "length_m": 10.0, "radius_m": 14.0, "direction": "left",
          "grade_pct": -3.0},
