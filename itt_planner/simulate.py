@@ -222,6 +222,12 @@ class RiderBehaviour:
         brake_margin_mps: the rider brakes when faster than the advised speed by this.
         brake_lookahead_s: ... looking this far ahead along the advised profile.
         w_reserve: below this fraction of W' the rider cannot exceed CP (exhausted).
+        roll_omega_radps: bandwidth of the lean loop (a gentler lean needs less
+            counter-steer, which the tyres must carry too).
+        grip_lateral: fraction of `mu_y g` the rider uses in a steady turn (the rest is
+            headroom for the lean loop); sets the corner speed the rider brakes for.
+        grip_brake: fraction of `mu_x g` the rider plans to brake at when looking ahead.
+        brake_gain: braking command `-W_n` per m/s over the brake speed.
     """
 
     power_lag_s: float = 0.8
@@ -232,8 +238,11 @@ class RiderBehaviour:
     w_reserve: float = 0.005
     k_lateral_ps: float = 0.3
     k_heading_ps: float = 1.0
-    roll_omega_radps: float = 6.0
-    steer_preview_s: float = 0.3
+    roll_omega_radps: float = 3.0
+    steer_preview_s: float = 0.8
+    grip_lateral: float = 0.92
+    grip_brake: float = 0.5
+    brake_gain: float = 0.5
 
 
 # ---- the closed-loop dynamics -----------------------------------------------------------------
@@ -251,9 +260,14 @@ def _closed_loop_step(behaviour: RiderBehaviour, substeps: int) -> ca.Function:
     `tan(phi) = -v r / g` (E5), is the desired lean; steering is chosen so the roll
     dynamics E5 follow it with a critically damped response (feedback linearisation of
     E5 for the yaw rate, then `delta = atan(r L / v)`). Steering is imposed directly
-    (its rate is unbounded in the model, C14 bounds its angle). Power: the target
-    (normalised `W_n`) with a first-order lag, braking when faster than the advised
-    speed, no pedalling at high lean (C15), and at most CP when W' is exhausted.
+    (its rate is unbounded in the model, C14 bounds its angle). Grip (C16) is a hard
+    limit of the truth: the desired turn is capped at `grip_lateral mu_y g`, the
+    steering at `|a_y| <= mu_y g`, and the longitudinal tyre force (pedalling or
+    braking) gets only what the ellipse leaves, so the friction use never exceeds 1; a
+    rider who is too fast runs wide. Power: the target (normalised `W_n`) with a
+    first-order lag, braking when faster than the advised speed or than the grip
+    envelope ahead (`_Reference.at`), no pedalling at high lean (C15), and at most CP
+    when W' is exhausted.
     """
     b = behaviour
     model = build_3d()
@@ -279,24 +293,42 @@ def _closed_loop_step(behaviour: RiderBehaviour, substeps: int) -> ca.Function:
         err_n = ca.fmin(ca.fmax(b.k_lateral_ps * (n - n_ref) / ca.fmax(v, 3.0), -0.3), 0.3)
         # Feed-forward on the curvature a moment ahead: leaning in takes time.
         yaw_des = kappa_ff * s_dot + b.k_heading_ps * (alpha_ref - err_n - alpha)
+        # Grip (C16): the rider never asks for a turn tighter than the tyres carry, and
+        # keeps headroom below it for the roll loop's steering transients.
+        v_safe = ca.fmax(v, 0.5)
+        ay_max = q["mu_y"] * g
+        yaw_lim = b.grip_lateral * ay_max / v_safe
+        yaw_des = ca.fmin(ca.fmax(yaw_des, -yaw_lim), yaw_lim)
         phi_des = -ca.atan(v * yaw_des / g)
         omega = b.roll_omega_radps
         phi_ddot_des = -omega ** 2 * (phi - phi_des) - 2 * omega * phi_dot
         i_x0 = q["roll_inertia"] + q["com_height"] ** 2 * q["mass"]
         c = q["com_height"] * q["mass"] / i_x0
-        v_safe = ca.fmax(v, 0.5)
         yaw_cmd = (phi_ddot_des / c - g * ca.sin(phi)) / (v_safe * ca.cos(phi))
-        delta = ca.atan(yaw_cmd * q["wheelbase"] / v_safe)
-        delta = ca.fmin(ca.fmax(delta, -q["steer_max"]), q["steer_max"])
+        # Tyre limit on the steering itself: |a_y| = v^2 tan(delta) / L <= mu_y g. A
+        # rider who would need more runs wide (n grows), as on a real road.
+        tan_max = ay_max * q["wheelbase"] / (v_safe * v_safe)
+        tan_delta = ca.fmin(ca.fmax(yaw_cmd * q["wheelbase"] / v_safe, -tan_max), tan_max)
+        delta = ca.fmin(ca.fmax(ca.atan(tan_delta), -q["steer_max"]), q["steer_max"])
         # An exhausted rider cannot hold more than CP: the cap acts on the delivered
         # power at once (not through the lag), so W' cannot be overdrawn.
         cap = (q["cp"] - 10.0) / q["p_max"]  # below CP (the E9 switch is smoothed ~5 W)
         w_applied = ca.if_else(e_n < b.w_reserve, ca.fmin(w_n, cap), w_n)
+        # Braking is a hand on the lever, not the legs: it acts at once (no power lag),
+        # so the rider slows to the envelope without overshooting it.
+        over = v - v_brake - b.brake_margin_mps
+        w_applied = ca.if_else(over > 0, ca.fmin(w_applied, ca.fmax(-b.brake_gain * over, -1)),
+                               w_applied)
+        # Friction ellipse C16 with the lateral force first (the line is held): the
+        # tyre force along the road, pedalling or braking, gets what grip is left.
+        ay_use = v * v * ca.tan(delta) / q["wheelbase"] / ay_max
+        ax_room = ca.sqrt(ca.fmax(1 - ay_use * ay_use, 0))
+        pedal_max = ax_room * q["mu_x"] * g * q["mass"] * ca.fmax(v, 0) / q["p_max"]
+        w_applied = ca.fmin(ca.fmax(w_applied, -ax_room), pedal_max)
         x_ctrl = ca.vertcat(xk[:i_w], w_applied, xk[i_w + 1:i_delta], delta / q["steer_max"],
                             xk[i_delta + 1:])
-        # Power command.
-        over = v - v_brake - b.brake_margin_mps
-        w_cmd = ca.if_else(over > 0, ca.fmin(w_target, -0.5 * over), w_target)
+        # Pedalling command (braking is applied above): the legs stop while braking.
+        w_cmd = ca.if_else(over > 0, ca.fmin(w_target, 0), w_target)
         w_cmd = ca.fmax(w_cmd, -1)
         gate = ca.fmax(0, 1 - (phi / q["pedal_lean"]) ** 2)  # C15
         w_cmd = ca.fmin(w_cmd, gate)
@@ -365,30 +397,72 @@ class SimResult:
                 "fallbacks": self.fallbacks}
 
 
-class _Reference:
-    """What the rider follows: a profile over `s` (advice horizon or the whole plan)."""
+#: Length over which `_Reference` averages the curvature of the line it follows.
+_LINE_SMOOTH_M = 6.0
+#: The rider never brakes for a speed below this (a walking pace).
+_V_BRAKE_MIN_MPS = 1.0
 
-    def __init__(self, s_m: np.ndarray, power_w: np.ndarray, v_mps: np.ndarray,
-                 n_m: np.ndarray) -> None:
+
+class _Reference:
+    """What the rider follows: a profile over `s` (advice horizon or the whole plan), and
+    the speed the rider can carry along its line within grip.
+
+    Args:
+        course: the road (the line's curvature is that of the ENU points at `(s, n)`).
+        grip_lateral: fraction of `mu_y g` the rider plans to use in a steady turn.
+        mu_y: lateral grip coefficient (C16).
+    """
+
+    def __init__(self, course: Course, s_m: np.ndarray, power_w: np.ndarray,
+                 v_mps: np.ndarray, n_m: np.ndarray, grip_lateral: float, mu_y: float) -> None:
         self.s_m, self.power_w, self.v_mps, self.n_m = s_m, power_w, v_mps, n_m
         self.dn_ds = np.gradient(n_m, s_m) if len(s_m) > 1 else np.zeros(1)
+        self.v_grip = np.full(len(s_m), np.inf)
+        if len(s_m) > 2:
+            # Heading of the line = road heading + the line's angle to the road; its
+            # change per metre travelled along the line is the line's curvature.
+            one_nk = 1 - n_m * course.at("kappa_per_m", s_m)
+            psi = course.at("theta_rad", s_m) + np.arctan2(self.dn_ds, one_nk)
+            dl = np.hypot(one_nk, self.dn_ds) * np.gradient(s_m)
+            kappa = np.gradient(np.unwrap(psi)) / np.maximum(dl, 1e-6)
+            # A rider feels the turn, not metre-scale wiggles of the sampled line: the
+            # mean curvature over ~`_LINE_SMOOTH_M` (the heading change across it).
+            half = max(1, round(_LINE_SMOOTH_M / 2 / max(float(np.mean(np.diff(s_m))), 1e-3)))
+            kernel = np.ones(2 * half + 1) / (2 * half + 1)
+            kappa = np.abs(np.convolve(np.pad(kappa, half, mode="edge"), kernel, "valid"))
+            # v^2 kappa <= grip_lateral mu_y g (C16 with a_x = 0).
+            self.v_grip = np.sqrt(grip_lateral * mu_y * GRAVITY_MPS2 / np.maximum(kappa, 1e-9))
 
     @classmethod
-    def of_plan(cls, plan: Plan) -> _Reference:
-        return cls(plan.s_m, plan.power_w, plan.v_mps, plan.n_m)
+    def of_plan(cls, course: Course, plan: Plan, grip_lateral: float, mu_y: float
+                ) -> _Reference:
+        return cls(course, plan.s_m, plan.power_w, plan.v_mps, plan.n_m, grip_lateral, mu_y)
 
     @classmethod
-    def of_advice(cls, advice: Advice) -> _Reference:
-        return cls(advice.horizon_s_m, advice.horizon_power_w, advice.horizon_speed_mps,
-                   advice.horizon_n_m)
+    def of_advice(cls, course: Course, advice: Advice, grip_lateral: float, mu_y: float
+                  ) -> _Reference:
+        return cls(course, advice.horizon_s_m, advice.horizon_power_w,
+                   advice.horizon_speed_mps, advice.horizon_n_m, grip_lateral, mu_y)
 
-    def at(self, s: float, power_ahead_m: float, brake_ahead_m: float
+    def at(self, s: float, v: float, behaviour: RiderBehaviour, decel_mps2: float
            ) -> tuple[float, float, float, float]:
-        """Power `power_ahead_m` ahead, min speed over the next `brake_ahead_m`, and
-        n and dn/ds at `s`."""
-        ahead = np.linspace(s, s + brake_ahead_m, 5)
-        return (float(np.interp(s + power_ahead_m, self.s_m, self.power_w)),
-                float(np.interp(ahead, self.s_m, self.v_mps).min()),
+        """Power one lag ahead, the brake speed, and n and dn/ds at `s`.
+
+        The brake speed is the lower of the advised speed's minimum a moment ahead and
+        the grip envelope: the speed from which the rider can still slow, at
+        `decel_mps2`, to what grip allows on the line ahead (less the brake margin,
+        which the controller adds back: no tolerance on grip). No reaction distance:
+        the controller's brake acts at once.
+        """
+        b = behaviour
+        ahead = np.linspace(s, s + b.brake_lookahead_s * v, 5)
+        v_ref = float(np.interp(ahead, self.s_m, self.v_mps).min())
+        far = s + np.linspace(0.0, v * v / (2 * decel_mps2) + 1.0, 41)
+        run = far - s
+        grip = np.interp(far, self.s_m, self.v_grip, right=np.inf)
+        v_env = float(np.sqrt(grip ** 2 + 2 * decel_mps2 * run).min())
+        return (float(np.interp(s + b.power_lag_s * v, self.s_m, self.power_w)),
+                max(min(v_ref, v_env - b.brake_margin_mps), _V_BRAKE_MIN_MPS),
                 float(np.interp(s, self.s_m, self.n_m)), float(np.interp(s, self.s_m, self.dn_ds)))
 
 
@@ -434,7 +508,9 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
     if policy is Policy.REPLANNED:
         engine = PacingEngine(course, rider, plan, conditions=conditions,
                               settings=engine_settings, planner=planner)  # type: ignore[arg-type]
-    plan_ref = _Reference.of_plan(plan)
+    grip = (behaviour.grip_lateral, conditions.mu_y)
+    decel = behaviour.grip_brake * conditions.mu_x * GRAVITY_MPS2
+    plan_ref = _Reference.of_plan(course, plan, *grip)
     ref = plan_ref
     advice: list[Advice] = []
     samples: list[Sample] = []
@@ -468,15 +544,19 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
             adv = engine.update(t0_s + t)
             if adv is not None:
                 advice.append(adv)
-                ref = _Reference.of_advice(adv)
+                ref = _Reference.of_advice(course, adv, *grip)
         rows.append((t, s, x[0], x[4], y[0], x[7] * truth_rider.w_prime_j, y[3]))
         # The rider's target at the current point.
         follow = plan_ref if (ref is plan_ref or s >= ref.s_m[-1]) else ref
         if scenario is Scenario.HOT_START and s < hot_start_m:
             follow = plan_ref
         # The rider reads the target one lag ahead, so the delivered power is on time.
-        power, v_brake, n_ref, dn_ds = follow.at(s, behaviour.power_lag_s * x[4],
-                                                 behaviour.brake_lookahead_s * x[4])
+        power, v_brake, n_ref, dn_ds = follow.at(s, float(x[4]), behaviour, decel)
+        # The rider brakes for speeds (the advised speed ahead, the grip envelope), by
+        # hand and at once in the controller; a negative advised power only means "stop
+        # pedalling" (braking it blindly, through the leg's lag, double-brakes a rider
+        # who is already slower than the advice).
+        power = max(power, 0.0)
         if policy is Policy.EVEN_CP:
             power = rider.critical_power_w
         if scenario is Scenario.HOT_START and s < hot_start_m:
