@@ -2,8 +2,7 @@
 
 Runs `itt_planner.replay.replay_ride`, exactly what `itt-planner replay --speed max` runs
 (deterministic planner: IPOPT's iteration cap is the budget, no wall-time cap), on the demo
-bag `bags/typical_verona-like.mcap` when it exists, else on a ride log simulated here
-from the full-course plan with the project's sensor model (GPS 1 Hz with 3 m noise,
+bag `bags/typical_verona-like.mcap` (a simulated 22-minute ride: GPS 1 Hz with 3 m noise,
 speed and power noise). Prints medians of >= 3 runs of:
 
 - full:       replay with the engine replanning every 1 s of stamp time, output MCAP written;
@@ -24,8 +23,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
@@ -34,25 +31,12 @@ from itt_planner.course_loader import load_course  # noqa: E402
 from itt_planner.ocp import OcpSettings  # noqa: E402
 from itt_planner.plan_cache import load_or_solve  # noqa: E402
 from itt_planner.replay import replay_ride  # noqa: E402
-from itt_planner.ridelog import RideLogReader, RideLogWriter, RideMetadata  # noqa: E402
+from itt_planner.ridelog import RideLogReader  # noqa: E402
 from itt_planner.rider import PRESETS  # noqa: E402
-from itt_planner.simulate import sensor_samples  # noqa: E402
 
 COURSE = "verona-like"
 RIDER = "typical"
 DEMO_BAG = ROOT / "bags" / "typical_verona-like.mcap"
-T0_S = 1_779_000_000.0  # a POSIX start time for the simulated log
-
-
-def simulated_log(path: Path, course, plan) -> Path:  # noqa: ANN001
-    """The rider rides the plan; the sensors see it with the project's noise model."""
-    samples = sensor_samples(course, plan.t_s, plan.s_m, plan.n_m, plan.v_mps, plan.power_w,
-                             np.random.default_rng(7), t0_s=T0_S)
-    meta = RideMetadata(source=f"simulated: {RIDER} rides the {COURSE} plan", rider=RIDER)
-    with RideLogWriter(path, metadata=meta) as writer:
-        for sample in samples:
-            writer.write_sample(sample)
-    return path
 
 
 def median_of(runs: int, fn) -> tuple[float, list[float], object]:  # noqa: ANN001
@@ -81,9 +65,8 @@ def main() -> int:
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp_dir = Path(tmp)
-        log_path = DEMO_BAG if DEMO_BAG.is_file() else simulated_log(tmp_dir / "ride.mcap",
-                                                                      course, plan)
-        print(f"input: {log_path.relative_to(ROOT) if log_path == DEMO_BAG else 'simulated'}")
+        log_path = DEMO_BAG
+        print(f"input: {log_path.relative_to(ROOT)}")
 
         def run(replan_period_s: float) -> object:
             return replay_ride(log_path, COURSE, RIDER, output=tmp_dir / "advice.mcap",
