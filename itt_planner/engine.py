@@ -23,7 +23,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -63,6 +63,12 @@ class EngineSettings:
         deterministic: publish `solve_time_s = 0.0` and never judge overruns by the
             wall clock, for byte-identical replays (module docstring).
         estimator: settings of the state estimator.
+        shortfall_window_s: the W'-exhaustion detector (`_check_shortfall`) looks at
+            this much stamp time of (target, measured) power ...
+        shortfall_above_cp: ... and fires when the mean target is this fraction above
+            the CP in use while the mean measured power stays below that CP ...
+        shortfall_min_w_prime: ... and the balance still shows more than this fraction
+            of W' (otherwise the balance already agrees with an exhausted rider).
     """
 
     replan_period_s: float = 1.0
@@ -72,6 +78,9 @@ class EngineSettings:
     failures_for_error: int = 3
     deterministic: bool = False
     estimator: EstimatorSettings = field(default_factory=EstimatorSettings)
+    shortfall_window_s: float = 20.0
+    shortfall_above_cp: float = 0.05
+    shortfall_min_w_prime: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -129,6 +138,9 @@ class PacingEngine:
         self._last_input: dict[str, float] = {}
         #: Measured wall-clock solve times (s), for benchmarks; never published.
         self.solve_times_s: list[float] = []
+        #: (stamp, advised power at the rider's s, measured power) at every replan.
+        self._following: deque[tuple[float, float, float]] = deque()
+        self._refits: list[tuple[float, float, float]] = []  # (stamp, cp before, after)
 
     # ---- inputs (any thread; never raise) -----------------------------------------------------
     def on_gps(self, fix: GpsFix) -> None:
@@ -166,6 +178,12 @@ class PacingEngine:
         with self._lock:
             return {**self._estimator.counters, **self._stats}
 
+    @property
+    def critical_power_w(self) -> float:
+        """The CP the W' balance uses: the believed one until a refit lowers it."""
+        with self._lock:
+            return self._estimator.rider.critical_power_w
+
     # ---- the replan ---------------------------------------------------------------------------
     def update(self, stamp_s: float) -> Advice | None:
         """Replan if `replan_period_s` of stamp time has passed since the last advice.
@@ -180,8 +198,65 @@ class PacingEngine:
             if state is None:
                 return None
             self._last_advice_stamp = stamp_s
-        with self._solve_lock:  # the inputs stay unlocked while solving
+            refit = self._check_shortfall(stamp_s, state)
+            if refit is not None:
+                state, rider = refit
+        with self._solve_lock:
+            if refit is not None:
+                self._replace_planner(rider)  # the inputs stay unlocked while solving
             return self._replan(stamp_s, state)
+
+    def _replace_planner(self, rider: Rider) -> None:
+        """Rebuild the horizon planner for the refitted rider (a new HorizonPlanner costs
+        tens of ms: fine once per refit); the full-course plan stays the terminal
+        treatment. Called with `self._solve_lock` held."""
+        from itt_planner.horizon import HorizonPlanner
+
+        old = self.planner
+        self.planner = HorizonPlanner(self.course, rider, self.plan, conditions=old.conditions,
+                                      settings=old.settings)
+
+    def _check_shortfall(self, stamp_s: float, state: RiderState
+                         ) -> tuple[RiderState, Rider] | None:
+        """Detect a rider out of W' that the balance says is not, and refit CP.
+
+        The balance integrates measured power against the CP the planner believes; if
+        the true CP is lower, it shows W' the rider no longer has. The signature: over
+        `shortfall_window_s`, advice clearly above CP (`shortfall_above_cp`) while the
+        measured power stays below CP - a rider with W' left follows the target within
+        its lag and noise (0.8 s, a few %), far above CP. Then the estimator refits CP so
+        that the balance of the whole power history is empty now
+        (`StateEstimator.refit_critical_power`) and the replan starts from W' = 0.
+        The planner is then rebuilt with the refitted CP (`_replace_planner`), so the
+        horizon no longer plans power above what the rider can sustain.
+        Called with `self._lock` held. Returns (the state to plan from, the refitted
+        rider) after a refit, else None.
+        """
+        st = self.settings
+        good = self._last_good
+        if good is None or not good.s_m[0] <= state.s_m <= good.s_m[-1]:
+            return None
+        target = float(np.interp(state.s_m, good.s_m, good.power_w))
+        window = self._following
+        window.append((stamp_s, target, state.power_w))
+        while window and window[0][0] < stamp_s - st.shortfall_window_s:
+            window.popleft()
+        if window[-1][0] - window[0][0] < 0.9 * st.shortfall_window_s:
+            return None
+        cp = self._estimator.rider.critical_power_w
+        mean_target = float(np.mean([w[1] for w in window]))
+        mean_power = float(np.mean([w[2] for w in window]))
+        if (mean_target < cp * (1 + st.shortfall_above_cp) or mean_power >= cp
+                or state.w_prime_j < st.shortfall_min_w_prime * self.rider.w_prime_j):
+            return None
+        new_cp = self._estimator.refit_critical_power(0.0)
+        self._refits.append((stamp_s, cp, new_cp))
+        self._stats["cp_refits"] += 1
+        window.clear()
+        log.warning("engine: rider held %.0f W against %.0f W advised (CP %.0f W) for %.0f s "
+                    "with W' %.0f J left: out of W'; CP refitted to %.0f W", mean_power,
+                    mean_target, cp, st.shortfall_window_s, state.w_prime_j, new_cp)
+        return self._estimator.state(stamp_s) or state, self._estimator.rider
 
     def _replan(self, stamp_s: float, state: RiderState) -> Advice:
         if self.course.length_m - state.s_m <= _FINISHED_M:
@@ -318,6 +393,21 @@ class PacingEngine:
         if not st.deterministic:
             values["solve_time_s"] = f"{self._last_solve_time:.4f}"
         out.append(Diagnostic(stamp_s, "itt_planner/solver", level, msg, values))
+        with self._lock:
+            refits = list(self._refits)
+            cp_now = self._estimator.rider.critical_power_w
+        cp_values = {"cp_believed_w": f"{self.rider.critical_power_w:.1f}",
+                     "cp_in_use_w": f"{cp_now:.1f}", "refits": str(len(refits))}
+        if refits:
+            at, before, after = refits[-1]
+            out.append(Diagnostic(
+                stamp_s, "itt_planner/rider_model", Level.WARN,
+                f"rider ran out of W' the balance still showed (at stamp {at:.0f} s): CP "
+                f"refitted {before:.0f} -> {after:.0f} W (the planner still believes "
+                f"{self.rider.critical_power_w:.0f} W)", cp_values))
+        else:
+            out.append(Diagnostic(stamp_s, "itt_planner/rider_model", Level.OK,
+                                  "power follows the advice: CP as believed", cp_values))
         for topic in ("gps", "speed", "power"):
             seen = last_input.get(topic)
             if seen is None:

@@ -25,6 +25,7 @@ here raises on input data.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from collections import Counter
@@ -143,6 +144,10 @@ class StateEstimator:
         self._e_n = 1.0
         self._power_t: float | None = None
         self._power_w = 0.0
+        #: Accepted power readings (stamp, W) since the start or a restore, and W' then:
+        #: what `refit_critical_power` replays.
+        self._power_log: list[tuple[float, float]] = []
+        self._e_n_log_start = 1.0
 
     # ---- public queries ----------------------------------------------------------------
     @property
@@ -205,6 +210,8 @@ class StateEstimator:
         self._t = snap["stamp_s"]
         self._power_t = snap["stamp_s"]
         self._power_w = 0.0
+        self._power_log = []
+        self._e_n_log_start = self._e_n
 
     # ---- inputs -------------------------------------------------------------------------
     def on_gps(self, fix: GpsFix) -> bool:
@@ -271,8 +278,53 @@ class StateEstimator:
             self._e_n = self._e_n_at(sample.stamp_s)
         self._power_t = sample.stamp_s
         self._power_w = p
+        self._power_log.append((sample.stamp_s, p))
         self.counters["power_accepted"] += 1
         return True
+
+    def refit_critical_power(self, w_prime_now_j: float = 0.0) -> float:
+        """Lower the critical power until the W' balance of the power history reaches
+        `w_prime_now_j`, and carry on with it (E9 with the refitted CP).
+
+        Why: a rider who cannot hold a target above CP has run out of W' while the
+        balance at the believed CP still shows some: CP was overestimated (a W' deficit
+        is far more likely than a wrong W'). The CP that explains the shortfall is the
+        highest one whose balance empties. Never raises CP; bisection on [0.5 CP, CP].
+
+        Returns:
+            The critical power now used (W).
+        """
+        if len(self._power_log) < 2:
+            return self.rider.critical_power_w
+        stamps = np.array([s for s, _ in self._power_log])
+        powers = np.array([p for _, p in self._power_log])
+        dt = np.minimum(np.diff(stamps), self.settings.power_hold_s)
+        target = w_prime_now_j / self.rider.w_prime_j
+
+        def balance(cp: float) -> tuple[float, float]:
+            """(lowest, last) normalised W' over the history with this CP."""
+            e = low = self._e_n_log_start
+            for p, h in zip(powers[:-1], dt):
+                rate = float(e_n_rate(e, p, cp, self.rider.w_prime_j,
+                                      self.settings.wprime_model))
+                e = min(e + rate * h, 1.0)
+                low = min(low, e)
+            return low, e
+
+        # The rider has been empty for a while when the shortfall is detected: the
+        # balance must reach the target somewhere, not exactly now (that would blame the
+        # whole detection window on CP and underestimate it).
+        lo, hi = 0.5 * self.rider.critical_power_w, self.rider.critical_power_w
+        if balance(hi)[0] <= target:
+            return hi
+        for _ in range(25):  # to ~0.01 W
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if balance(mid)[0] < target else (lo, mid)
+        self.rider = dataclasses.replace(self.rider, critical_power_w=hi)
+        self._e_n = max(balance(hi)[1], 0.0)
+        self._power_t = float(stamps[-1])
+        self._power_w = float(powers[-1])
+        return hi
 
     # ---- stamps and counters ------------------------------------------------------------
     def _reject(self, reason: str, sample: object) -> bool:

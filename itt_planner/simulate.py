@@ -371,6 +371,8 @@ class SimResult:
         advice: every advice of the engine (replanned rides only).
         finish_time_s: time at the finish line (NaN when `max_time_s` ran out first).
         solve_times_s: wall-clock replan latencies of the engine.
+        cp_in_use_w: the engine's CP at the finish (lower than the believed one after
+            it refitted CP from a rider who could not hold the advice; NaN without engine).
     """
 
     scenario: Scenario
@@ -387,14 +389,18 @@ class SimResult:
     finish_time_s: float = math.nan
     solve_times_s: list[float] = field(default_factory=list)
     fallbacks: int = 0
+    cp_in_use_w: float = math.nan
 
     def summary(self) -> dict[str, float]:
-        """finish_time_s, w_prime_min_j, w_prime_end_j (and fallbacks), JSON-ready."""
+        """finish_time_s, w_prime_min_j, w_prime_end_j (and fallbacks, the engine's CP),
+        JSON-ready."""
         return {"finish_time_s": round(float(self.finish_time_s), 3),
                 "w_prime_min_j": round(float(self.w_prime_j.min()), 1),
                 "w_prime_end_j": round(float(self.w_prime_j[-1]), 1),
                 "max_friction_use": round(float(self.friction_use.max()), 3),
-                "fallbacks": self.fallbacks}
+                "fallbacks": self.fallbacks,
+                **({} if math.isnan(self.cp_in_use_w) else
+                   {"cp_in_use_w": round(float(self.cp_in_use_w), 1)})}
 
 
 #: Length over which `_Reference` averages the curvature of the line it follows.
@@ -590,6 +596,7 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
         samples=samples, advice=advice, finish_time_s=finish,
         solve_times_s=engine.solve_times_s if engine is not None else [],
         fallbacks=sum(a.fallback for a in advice),
+        cp_in_use_w=engine.critical_power_w if engine is not None else math.nan,
     )
 
 

@@ -132,6 +132,8 @@ def test_fallback_keeps_last_good_advice_shifted(course, plan):
     assert int(solver.values["fallbacks"]) == fallbacks_before + 5
     assert solver.values["consecutive_failures"] == "5"
     assert "last good advice" in solver.message
+    rider_model = diags["itt_planner/rider_model"]  # the rider followed: no CP refit
+    assert rider_model.level == Level.OK and rider_model.values["refits"] == "0"
     # Recovery: a working planner again clears the error.
     engine.planner = good
     back = _ride(engine, course, plan, 30.0, start=25.0)

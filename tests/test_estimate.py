@@ -157,6 +157,24 @@ def test_wprime_balance_matches_skiba(course):
     assert est.state(1000.0).power_w == 0.0
 
 
+def test_refit_critical_power_explains_a_rider_out_of_wprime(course):
+    """A rider whose true CP is 5 % below the believed one holds 500 W until empty, then
+    only CP - 10 W: the balance at the believed CP still shows W' left; the refit finds
+    the CP whose balance empties (the true one), and never raises CP."""
+    est = StateEstimator(course, RIDER)
+    cp, e0 = RIDER.critical_power_w, RIDER.w_prime_j
+    cp_true = 0.95 * cp
+    t_empty = e0 / (500.0 - cp_true)
+    for k in range(int(t_empty) + 30):
+        est.on_power(PowerReading(float(k), 500.0 if k < t_empty else cp_true - 10.0))
+    assert est.snapshot()["w_prime_j"] > 0.2 * e0  # the believed balance: far from empty
+    assert est.refit_critical_power(0.0) == pytest.approx(cp_true, abs=2.0)
+    assert est.rider.critical_power_w < cp
+    assert est.snapshot()["w_prime_j"] < 0.02 * e0
+    # A balance that already agrees leaves CP alone.
+    assert est.refit_critical_power(0.0) == pytest.approx(est.rider.critical_power_w)
+
+
 def test_snapshot_restore_keeps_wprime_and_progress(course):
     est = StateEstimator(course, RIDER)
     t, s, n, v, p = _truth(course)

@@ -121,9 +121,9 @@ def test_truth_respects_grip(course, plan, policy, scenario):
 
 
 def test_nominal_replanned_close_to_the_optimum(course, plan):
-    """Within 2 % of the full-course optimum (measured +1.5 %): NOT the issue's 1 %, since
-    the optimum corners at 100 % of the grip and the simulated rider cannot (grip is a
-    hard limit of the truth, test_truth_respects_grip). The blind plan loses more."""
+    """Within 2 % of the full-course optimum (measured +0.6 to +1.7 % over plans and
+    seeds): NOT the issue's 1 % everywhere, since the optimum corners at 100 % of the grip
+    and the simulated rider cannot (test_truth_respects_grip). The blind plan loses more."""
     out = _compare(course, plan, "nominal")
     replanned = out["replanned"]
     assert replanned["finish_time_s"] <= 1.02 * plan.finish_time_s
@@ -147,13 +147,25 @@ def test_hot_start_replanned_beats_open_loop(course, plan):
     assert out["open_loop"]["w_prime_end_j"] > out["replanned"]["w_prime_end_j"]
 
 
+def test_cp_overestimated_is_detected(course, plan):
+    """True CP 5 % below the belief (418 W vs 440 W): the engine sees the rider fail to
+    hold advice above CP, refits CP from the power history to within a few W of the
+    truth and replans with it. It does NOT beat the blind plan here (measured -0.8 to
+    +0.3 s over seeds): both riders run dry before anything reveals the lower CP;
+    bench/results_closed_loop.md."""
+    out = _compare(course, plan, "cp-overestimated")
+    assert out["replanned"]["cp_in_use_w"] == pytest.approx(0.95 * RIDER.critical_power_w,
+                                                            rel=0.02)
+    assert out["margins"]["replanned_vs_even_cp_s"] > 0.0
+    for policy in ("replanned", "open_loop", "even_cp"):
+        assert out[policy]["w_prime_min_j"] >= 0.0
+        assert out[policy]["max_friction_use"] <= 1.0 + 1e-3
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("scenario", ["cp-overestimated", "headwind"])
-def test_other_scenarios(course, plan, scenario):
-    """W' stays >= 0 and the replanned ride beats even pacing. (Against the blind plan
-    in `cp-overestimated` the replanned ride is NOT faster: the engine's W' balance uses
-    the believed CP, so both run dry alike; see bench/results_closed_loop.md.)"""
-    out = _compare(course, plan, scenario)
+def test_headwind(course, plan):
+    """W' stays >= 0 and the replanned ride beats even pacing."""
+    out = _compare(course, plan, "headwind")
     for policy in ("replanned", "open_loop", "even_cp"):
         assert out[policy]["w_prime_min_j"] >= 0.0
     assert out["margins"]["replanned_vs_even_cp_s"] > 0.0
