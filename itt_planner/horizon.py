@@ -17,7 +17,7 @@ Design choices:
   mode in the horizon, shooting intervals had to stay <= 4 m (longer ones span ~1 s of
   the instability and IPOPT needed huge Hessian regularisation), so a 1 km window
   needed >= 250 intervals and most replans on verona-like hit the caps (bench/
-  results_horizon.md). Without it, 5-20 m intervals are well conditioned. What the
+  bench/RESULTS.md). Without it, 5-20 m intervals are well conditioned. What the
   pacing depends on stays: the lean is still tied to the lateral acceleration, C16
   still bounds grip (hence the lean, `phi_max ~ atan(mu_y)`), and C15 still gates
   pedalling on that lean. Lost: the transient of initiating a lean (a few metres at
@@ -46,7 +46,7 @@ Design choices:
   time later; without it the horizon would coast to a crawl at its end.
 - Warm start from the previous usable solution shifted in `s` (interpolated onto the
   new nodes, the plan beyond its end), re-anchored at the measured state; measured
-  options in bench/results_horizon.md. An unusable iterate is never reused as a start:
+  options in bench/RESULTS.md. An unusable iterate is never reused as a start:
   after a failed replan the next one again starts from the last usable solution, and
   only after `reset_after_failures` failures in a row from the plan.
 - Two attempts within one budget: the warm attempt gets `warm_share` of the wall time;
@@ -58,7 +58,7 @@ Design choices:
   and pedalling limits within `grip_tol`. Why: a trajectory that starts at the rider,
   obeys the dynamics, stays on the road, within grip and never empties W' below 0 is
   valid advice, while dropping it leaves the rider with older advice from a stale
-  state. Measured on the verona-like sweep (bench/results_horizon.md, 6 such replans
+  state. Measured on the verona-like sweep (bench/RESULTS.md, 6 such replans
   re-solved to convergence): window time +0.0 to +1.0 s of ~70 s, target power within
   18 W. The soft terminal W' target is not part of the check: one capped iterate was
   1.0 s faster than the optimum by ending its window 2.8 kJ below that target (W' still
@@ -92,7 +92,7 @@ log = logging.getLogger(__name__)
 
 #: Replans with a previous solution start next to the optimum: a small initial barrier
 #: and a start kept inside the bounds it already satisfies. Measured on verona-like
-#: (bench/results_horizon.md): median ~20 iterations instead of ~50 with IPOPT's defaults.
+#: (bench/RESULTS.md): median ~20 iterations instead of ~50 with IPOPT's defaults.
 _WARM_IPOPT = {"mu_init": 1e-4, "mu_strategy": "monotone", "warm_start_init_point": "yes",
                "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6,
                "warm_start_slack_bound_push": 1e-6, "nlp_scaling_method": "none"}
@@ -100,7 +100,7 @@ _WARM_IPOPT = {"mu_init": 1e-4, "mu_strategy": "monotone", "warm_start_init_poin
 #: terminal penalties give gradients of 100-1000) by up to 10x, so the tolerance and the
 #: barrier acted on a different problem than the one the weights were tuned on; without
 #: it the whole verona-like sweep went from 95 % to 98 % usable replans and the p95
-#: latency from 387 to 246 ms (bench/results_horizon.md).
+#: latency from 387 to 246 ms (bench/RESULTS.md).
 #: The first replan (or one after a failure) starts from the full-course plan, which was
 #: solved with the roll dynamics: a larger barrier lets IPOPT move away from it (with the
 #: warm settings 1 of 12 verona-like windows failed, with these none).

@@ -79,7 +79,7 @@ def test_synthetic_track_over_seeds_0_to_19() -> None:
 
     The issue's per-seed bar (every corner within 25 %, length within 0.5 %, straights
     > 300 m) is NOT met on every seed: the fit meets all of it on 4 of these 20 seeds
-    (see bench/results_course.md). What holds on every seed, and is asserted here: the
+    (see bench/RESULTS.md). What holds on every seed, and is asserted here: the
     four bends are found with the right directions, the hairpin within 25 %, the S-bend
     and the 25 m corner within 60 %, the length within 1.5 %, no straight below 150 m;
     and over the block, the median error of each bend within 25 % and the median length

@@ -158,7 +158,7 @@ def test_warm_start_beats_cold_on_shifted_windows(plan: Plan, planner: HorizonPl
 
 def test_off_plan_state_keeps_w_prime_non_negative(plan: Plan) -> None:
     # A cold start with W' nearly empty while surging needs ~120-140 iterations
-    # (bench/results_horizon.md): this test gives it the iterations, not the default cap.
+    # (bench/RESULTS.md): this test gives it the iterations, not the default cap.
     deep = HorizonPlanner(COURSE, PRESETS["paper"], plan,
                           settings=HorizonSettings(horizon_m=500.0, max_iter=300,
                                                    max_wall_time_s=20.0))

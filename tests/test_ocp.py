@@ -177,7 +177,7 @@ def test_riders_on_verona_1d(verona: Course, verona_plans: dict[str, Plan]) -> N
     balance it loses MORE per km, relatively and absolutely, on the climb than elsewhere:
     the issue's "the climber loses less on the climb" does not follow from these
     parameters (measured: climb x1.131 vs rest x1.107 of the specialist's time; reported
-    in bench/results_ocp.md). Asserted instead what the physics says: the relative loss
+    in bench/RESULTS.md). Asserted instead what the physics says: the relative loss
     on the climb exceeds the loss elsewhere and is at most the steady-state (CP-only)
     ratio, which equal W' narrows.
     """
@@ -215,7 +215,7 @@ def test_non_uniform_mesh_matches_uniform_1m_on_verona(verona: Course,
     """Mesh bar: the non-uniform mesh's finish time within 0.3 % of a uniform 1 m mesh
     (also measured in bench/bench_ocp.py --mesh-study)."""
     # At the default 400-iteration cap the 16,801-node solve stopped unconverged
-    # (bench/results_ocp.md), hence the higher caps.
+    # (bench/RESULTS.md), hence the higher caps.
     fine = solve_plan(verona, PRESETS["typical"], settings=OcpSettings(
         uniform_m=1.0, max_iter=1500, max_cpu_time_s=3600.0))
     assert fine.meta["success"], fine.solver_status
@@ -228,7 +228,7 @@ SHORT_COURSE = {
     "name": "short", "width_left_m": 4.0, "width_right_m": 4.0,
     "segments": [
         # With a 250 m first straight two of the three riders need solve_plan's restart
-        # after Restoration_Failed (bench/results_ocp.md); 500 m converges at once.
+        # after Restoration_Failed (bench/RESULTS.md); 500 m converges at once.
         {"type": "straight", "length_m": 500.0, "grade_pct": 2.0},
         {"type": "clothoid", "length_m": 10.0, "radius_m": 14.0, "direction": "left",
          "grade_pct": -3.0},

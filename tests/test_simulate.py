@@ -83,7 +83,7 @@ def test_time_domain_model_reproduces_the_plan(course, plan):
     """Following the full-course plan in time (lag, noise, path-following controller),
     the 3D model ends within 2.5 % of the OCP's time and stays near the planned line.
     (The plan corners at 100 % of the grip; the simulated rider keeps 8 % of it for
-    leaning in and out, so it is ~2 % slower: bench/results_closed_loop.md.)"""
+    leaning in and out, so it is ~2 % slower: bench/RESULTS.md.)"""
     res = simulate_ride(course, RIDER, plan, policy=Policy.OPEN_LOOP, seed=1)
     assert res.finish_time_s == pytest.approx(plan.finish_time_s, rel=0.025)
     err = res.n_m - plan.at("n_m", res.s_m)
@@ -152,7 +152,7 @@ def test_cp_overestimated_is_detected(course, plan):
     hold advice above CP, refits CP from the power history to within a few W of the
     truth and replans with it. It does NOT beat the blind plan here (measured -0.8 to
     +0.3 s over seeds): both riders run dry before anything reveals the lower CP;
-    bench/results_closed_loop.md."""
+    bench/RESULTS.md."""
     out = _compare(course, plan, "cp-overestimated")
     assert out["replanned"]["cp_in_use_w"] == pytest.approx(0.95 * RIDER.critical_power_w,
                                                             rel=0.02)
@@ -177,7 +177,7 @@ def test_verona_like_nominal(request):
     Measured 2026-11-22: replanned 1278.9-1284.1 s vs the optimum 1257.5 s (+1.7 to
     +2.1 %; the blind plan did +0.3 %), so the issue's 1 % bar is met on the short test
     course but NOT here; asserted is what holds (W' >= 0, within 3 %, far ahead of even
-    pacing). See bench/results_closed_loop.md."""
+    pacing). See bench/RESULTS.md."""
     from itt_planner.course_loader import load_course
 
     course = load_course("verona-like")
