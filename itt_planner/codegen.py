@@ -24,7 +24,7 @@ import casadi as ca
 log = logging.getLogger(__name__)
 
 #: Optimisation level: -O1 compiles a ~50k-operation Hessian in seconds; -O2/-O3 take
-#: several times longer for a few percent (measured in bench/results_ocp.md).
+#: several times longer for a few percent (measured in bench/RESULTS.md).
 _CFLAGS = ("-O1", "-fPIC", "-shared")
 
 
