@@ -35,7 +35,7 @@ from itt_planner.course import Course
 from itt_planner.estimate import EstimatorSettings, StateEstimator
 from itt_planner.plan import Plan
 from itt_planner.rider import Rider
-from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.samples import GpsFix, PowerReading, Sample, WheelSpeed
 from itt_planner.state import RiderState
 
 if TYPE_CHECKING:
@@ -151,6 +151,15 @@ class PacingEngine:
 
     def on_power(self, sample: PowerReading) -> None:
         self._input("power", sample, self._estimator.on_power)
+
+    def on_sample(self, sample: Sample) -> None:
+        """Any input sample, dispatched by its type (for loops over a recorded stream)."""
+        if isinstance(sample, GpsFix):
+            self.on_gps(sample)
+        elif isinstance(sample, WheelSpeed):
+            self.on_speed(sample)
+        else:
+            self.on_power(sample)
 
     def _input(self, topic: str, sample: Any, handler: Any) -> None:
         with self._lock:

@@ -540,12 +540,7 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
         for smp in sens.sample(t, s, float(x[0]), float(x[4]), p_now):
             samples.append(smp)
             if engine is not None:
-                if isinstance(smp, GpsFix):
-                    engine.on_gps(smp)
-                elif isinstance(smp, WheelSpeed):
-                    engine.on_speed(smp)
-                else:
-                    engine.on_power(smp)
+                engine.on_sample(smp)
         if engine is not None:
             adv = engine.update(t0_s + t)
             if adv is not None:
