@@ -153,6 +153,37 @@ def _ax_squared(v: ca.SX, w_n: ca.SX, q: dict[str, ca.SX]) -> ca.SX:
     return pedal * pedal + brake * brake
 
 
+def _kinematics(n: ca.SX, alpha: ca.SX, v: ca.SX, delta_n: ca.SX, kappa: ca.SX,
+                q: dict[str, ca.SX]) -> tuple[ca.SX, ca.SX]:
+    """Progress rate `s_dot` (E8) and yaw rate (E1), shared by both 3D models."""
+    delta = delta_n * q["steer_max"]
+    s_dot = ca.fmax(v, _V_GUARD_MPS) * ca.cos(alpha) / (1 - n * kappa)  # E8
+    yaw_rate = v * ca.tan(delta) / q["wheelbase"]  # E1 [fix]: kinematic bicycle v tan(d)/L
+    return s_dot, yaw_rate
+
+
+def _command_rate(u: ca.SX, rate_max: ca.SX, full_scale: ca.SX) -> ca.SX:
+    """E6/E7 [fix]: d(normalised command)/dt from a control normalised by its max rate."""
+    return u * rate_max / full_scale
+
+
+def _spatial_ode(name: str, x: ca.SX, u: ca.SX, road: ca.SX, p: ca.SX, x_dot: ca.SX,
+                 s_dot: ca.SX, penalties: tuple[ca.SX, ...]) -> ca.Function:
+    """Time derivatives -> space derivatives (divide by `s_dot`), with dt/ds and the
+    running cost of the objective (section 5): dt/ds (1 + w_1 u_delta^2 + w_2 u_W^2)."""
+    dt_ds = 1 / s_dot
+    weight = 1
+    for term in penalties:  # summed left to right, as the objective is written
+        weight = weight + term
+    return ca.Function(name, [x, u, road, p], [x_dot * dt_ds, dt_ds, dt_ds * weight],
+                       ["x", "u", "road", "p"], ["dxds", "dtds", "dJds"])
+
+
+def _friction(v: ca.SX, w_n: ca.SX, ay: ca.SX, q: dict[str, ca.SX]) -> ca.SX:
+    """C16: the friction ellipse on the tyre forces."""
+    return _ax_squared(v, w_n, q) + (ay / (q["mu_y"] * GRAVITY_MPS2)) ** 2
+
+
 def build_3d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
     """The 3D model, E1-E9 with the [fix]es of model.md, path constraints C15 and C16."""
     x = ca.SX.sym("x", len(STATES_3D))
@@ -165,9 +196,7 @@ def build_3d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
     q = _par(p)
     g = GRAVITY_MPS2
 
-    delta = delta_n * q["steer_max"]
-    s_dot = ca.fmax(v, _V_GUARD_MPS) * ca.cos(alpha) / (1 - n * kappa)  # E8
-    yaw_rate = v * ca.tan(delta) / q["wheelbase"]  # E1 [fix]: kinematic bicycle v tan(d)/L
+    s_dot, yaw_rate = _kinematics(n, alpha, v, delta_n, kappa, q)
     i_x0 = q["roll_inertia"] + q["com_height"] ** 2 * q["mass"]
     # E5 [fix]: nonlinear inverted pendulum, steady lean tan(phi) = -(v^2 tan(d)/L)/g.
     phi_ddot = (q["com_height"] * q["mass"] / i_x0) * (
@@ -179,17 +208,15 @@ def build_3d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
         phi_dot,  # E4
         phi_ddot,  # E5
         v_dot,  # E3
-        u_w * q["power_rate_max"] / q["p_max"],  # E6 [fix]
-        u_delta * q["steer_rate_max"] / q["steer_max"],  # E7 [fix]
+        _command_rate(u_w, q["power_rate_max"], q["p_max"]),  # E6
+        _command_rate(u_delta, q["steer_rate_max"], q["steer_max"]),  # E7
         e_dot,  # E9
     )
-    dt_ds = 1 / s_dot
-    running = dt_ds * (1 + q["w_delta"] * u_delta ** 2 + q["w_power"] * u_w ** 2)
-    ode = ca.Function(f"ode3d_{wprime_model.value}", [x, u, road, p], [x_dot * dt_ds, dt_ds, running],
-                      ["x", "u", "road", "p"], ["dxds", "dtds", "dJds"])
+    ode = _spatial_ode(f"ode3d_{wprime_model.value}", x, u, road, p, x_dot, s_dot,
+                       (q["w_delta"] * u_delta ** 2, q["w_power"] * u_w ** 2))
 
     ay = v * yaw_rate
-    friction = _ax_squared(v, w_n, q) + (ay / (q["mu_y"] * g)) ** 2  # C16
+    friction = _friction(v, w_n, ay, q)
     # C15: W_n <= max(0, 1 - (phi/phi_pedal)^2), smoothed from the feasible side.
     r = phi / (_PEDAL_MARGIN * q["pedal_lean"])
     pedal = w_n - _smooth_pos(1 - r * r, _EPS_PEDAL)
@@ -230,30 +257,24 @@ def build_3d_steady_lean(wprime_model: WPrimeModel = WPrimeModel.SKIBA, *,
     u_delta, u_w = u[0], u[1]
     kappa, beta, theta = road[0], road[1], road[2]
     q = _par(p)
-    g = GRAVITY_MPS2
 
-    delta = delta_n * q["steer_max"]
-    s_dot = ca.fmax(v, _V_GUARD_MPS) * ca.cos(alpha) / (1 - n * kappa)  # E8
-    yaw_rate = v * ca.tan(delta) / q["wheelbase"]  # E1 [fix]
+    s_dot, yaw_rate = _kinematics(n, alpha, v, delta_n, kappa, q)
     v_dot, e_dot = _longitudinal(v, w_n, e_n, theta + alpha, beta, q, wprime_model,
                                  eps_wn, sharpness_w)
     x_dot = ca.vertcat(
         v * ca.sin(alpha),  # E2
         yaw_rate - kappa * s_dot,  # E1
         v_dot,  # E3
-        u_w * q["power_rate_max"] / q["p_max"],  # E6 [fix]
-        u_delta * q["steer_rate_max"] / q["steer_max"],  # E7 [fix]
+        _command_rate(u_w, q["power_rate_max"], q["p_max"]),  # E6
+        _command_rate(u_delta, q["steer_rate_max"], q["steer_max"]),  # E7
         e_dot,  # E9
     )
-    dt_ds = 1 / s_dot
-    running = dt_ds * (1 + q["w_delta"] * u_delta ** 2 + q["w_power"] * u_w ** 2)
     tag = f"{wprime_model.value}_{eps_wn:g}_{sharpness_w:g}".replace(".", "p").replace("-", "m")
-    ode = ca.Function(f"ode3dsteady_{tag}", [x, u, road, p],
-                      [x_dot * dt_ds, dt_ds, running], ["x", "u", "road", "p"],
-                      ["dxds", "dtds", "dJds"])
+    ode = _spatial_ode(f"ode3dsteady_{tag}", x, u, road, p, x_dot, s_dot,
+                       (q["w_delta"] * u_delta ** 2, q["w_power"] * u_w ** 2))
 
     ay = v * yaw_rate
-    friction = _ax_squared(v, w_n, q) + (ay / (q["mu_y"] * g)) ** 2  # C16
+    friction = _friction(v, w_n, ay, q)
     r = steady_lean_rad(ay) / (_PEDAL_MARGIN * q["pedal_lean"])  # C15 on the steady lean
     pedal = w_n - _smooth_pos(1 - r * r, _EPS_PEDAL)
     path = ca.Function("path3dsteady", [x, p], [ca.vertcat(friction - 1, pedal)],
@@ -272,11 +293,9 @@ def build_1d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
     v, w_n, e_n = x[0], x[1], x[2]
     q = _par(p)
     v_dot, e_dot = _longitudinal(v, w_n, e_n, road[2], road[1], q, wprime_model)
-    x_dot = ca.vertcat(v_dot, u[0] * q["power_rate_max"] / q["p_max"], e_dot)
-    dt_ds = 1 / ca.fmax(v, _V_GUARD_MPS)
-    running = dt_ds * (1 + q["w_power"] * u[0] ** 2)
-    ode = ca.Function(f"ode1d_{wprime_model.value}", [x, u, road, p], [x_dot * dt_ds, dt_ds, running],
-                      ["x", "u", "road", "p"], ["dxds", "dtds", "dJds"])
+    x_dot = ca.vertcat(v_dot, _command_rate(u[0], q["power_rate_max"], q["p_max"]), e_dot)
+    ode = _spatial_ode(f"ode1d_{wprime_model.value}", x, u, road, p, x_dot,
+                       ca.fmax(v, _V_GUARD_MPS), (q["w_power"] * u[0] ** 2,))
     friction = _ax_squared(v, w_n, q)
     path = ca.Function("path1d", [x, p], [friction - 1], ["x", "p"], ["g"])
     outputs = ca.Function("out1d", [x, p], [_report(v, w_n, 0 * v, friction, q)],
