@@ -9,6 +9,7 @@ it is SIMULATED and how to remake it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -53,7 +54,7 @@ def record_simulated_ride(course: Course, rider: Rider, plan: Plan, output: str 
     """
     result = simulate_ride(course, rider, plan, policy=Policy.OPEN_LOOP, seed=seed,
                            conditions=conditions, t0_s=DEMO_START_POSIX_S)
-    if not result.finish_time_s == result.finish_time_s:  # NaN: ran out of time
+    if math.isnan(result.finish_time_s):  # ran out of time before the line
         msg = f"simulated {rider.name} did not finish {course.name}; no log written"
         raise IttError(msg)
     remake = (f"itt-planner make-bag --course {course.name} --rider {rider.name} "

@@ -12,32 +12,17 @@ import numpy as np
 import pytest
 
 from itt_planner.advice import Level
-from itt_planner.conditions import Conditions
 from itt_planner.engine import EngineSettings, PacingEngine
 from itt_planner.horizon import HorizonPlanner, HorizonSettings
-from itt_planner.ocp import OcpSettings
-from itt_planner.plan_cache import load_or_solve
-from itt_planner.rider import PRESETS
 from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.simulate import hairpin_course
 
-RIDER = PRESETS["paper"]
+from hairpin_fixtures import RIDER, course, plan  # noqa: F401  (course, plan: fixtures)
+
 #: A short horizon keeps the tests fast; a wall-time budget no loaded CI machine hits
 #: keeps the solver's path deterministic.
 CALM = HorizonSettings(horizon_m=400.0, n_intervals=50, max_wall_time_s=30.0)
 #: Engines in tests judge no overruns unless a test is about them (2 busy cores).
 PATIENT = EngineSettings(max_solve_time_s=30.0)
-
-
-@pytest.fixture(scope="module")
-def course():
-    return hairpin_course()
-
-
-@pytest.fixture(scope="module")
-def plan(course, request):
-    return load_or_solve(course, RIDER, Conditions(), OcpSettings(), "3d",
-                         cache_dir=request.config.cache.mkdir("itt_plans"))
 
 
 def _ride(engine: PacingEngine, course, plan, t_end: float, *, v_scale: float = 1.0,

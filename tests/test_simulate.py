@@ -22,27 +22,16 @@ from itt_planner.engine import EngineSettings
 from itt_planner.horizon import HorizonPlanner, HorizonSettings
 from itt_planner.ocp import OcpSettings
 from itt_planner.plan_cache import load_or_solve
-from itt_planner.rider import PRESETS
 from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.simulate import (
     Policy, SensorSettings, Sensors, compare_policies, hairpin_course, simulate_ride,
 )
 
-RIDER = PRESETS["paper"]
+from hairpin_fixtures import RIDER, course, plan  # noqa: F401  (course, plan: fixtures)
+
 FAST_HORIZON = HorizonSettings(horizon_m=400.0, n_intervals=50, max_wall_time_s=30.0)
 #: Replan every 2 s; no overrun judged on a loaded 2-core machine.
 FAST_ENGINE = EngineSettings(replan_period_s=2.0, max_solve_time_s=30.0)
-
-
-@pytest.fixture(scope="module")
-def course():
-    return hairpin_course()
-
-
-@pytest.fixture(scope="module")
-def plan(course, request):
-    return load_or_solve(course, RIDER, Conditions(), OcpSettings(), "3d",
-                         cache_dir=request.config.cache.mkdir("itt_plans"))
 
 
 def _compare(course, plan, scenario):
