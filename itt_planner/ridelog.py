@@ -2,8 +2,9 @@
 
 A ride log is a single `.mcap` file that `ros2 bag play`, Foxglove, rosbags and Rerun
 open as they are: each channel carries the full concatenated `.msg` definition as its
-schema, each message the CDR payload, and log time = publish time = the message's header
-stamp (the ride clock). A metadata record `itt_ride` names the source file, its SHA-256,
+schema and the QoS its publishers offered (`offered_qos_profiles`, as rosbag2 records
+it, so `ros2 bag play` offers sensors best-effort again), each message the CDR payload,
+and log time = publish time = the message's header stamp (the ride clock). A metadata record `itt_ride` names the source file, its SHA-256,
 the device and the rider.
 
 Reading streams the file record by record, so a log cut short by a crash or damaged in
@@ -39,6 +40,7 @@ from itt_msgs_py.convert import (
     target_line_msg,
     target_power_msg,
 )
+from itt_msgs_py.qos import OFFERED_QOS_KEY, offered_qos_yaml
 from itt_planner.advice import Advice, Diagnostic
 from itt_planner.errors import RideLogError
 from itt_planner.samples import Sample
@@ -73,7 +75,11 @@ class RideMetadata:
 
 
 class RawRecord(NamedTuple):
-    """One message as stored: its channel's topic and schema, log time and CDR bytes."""
+    """One message as stored: its channel's topic and schema, log time and CDR bytes.
+
+    `offered_qos_profiles` is the channel's rosbag2 QoS YAML; empty means "the interface's
+    QoS for a known topic, none otherwise".
+    """
 
     topic: str
     msgtype: str
@@ -83,6 +89,7 @@ class RawRecord(NamedTuple):
     log_time_ns: int
     publish_time_ns: int
     data: bytes
+    offered_qos_profiles: str = ""
 
 
 class RideLogWriter:
@@ -102,6 +109,7 @@ class RideLogWriter:
                  compression: CompressionType = CompressionType.ZSTD) -> None:
         self.path = Path(path)
         self.namespace = namespace
+        self._topics = topics.topics_by_name(namespace)
         self.counts: Counter[str] = Counter()
         try:
             self._file: IO[bytes] = self.path.open("wb")
@@ -135,7 +143,7 @@ class RideLogWriter:
             self._file.close()
 
     def _channel(self, topic: str, msgtype: str, schema_encoding: str, schema_data: bytes,
-                 message_encoding: str) -> int:
+                 message_encoding: str, offered_qos: str) -> int:
         schema_key = (msgtype, schema_encoding, schema_data)
         schema_id = self._schemas.get(schema_key)
         if schema_id is None:
@@ -144,7 +152,8 @@ class RideLogWriter:
         channel_key = (topic, schema_id, message_encoding)
         channel_id = self._channels.get(channel_key)
         if channel_id is None:
-            channel_id = self._writer.register_channel(topic, message_encoding, schema_id)
+            channel_id = self._writer.register_channel(
+                topic, message_encoding, schema_id, metadata={OFFERED_QOS_KEY: offered_qos})
             self._channels[channel_key] = channel_id
         return channel_id
 
@@ -154,8 +163,11 @@ class RideLogWriter:
 
     def write_raw(self, record: RawRecord) -> None:
         """Copy a stored message as it is (schema, encoding, times and bytes)."""
+        offered_qos = record.offered_qos_profiles
+        if not offered_qos and (known := self._topics.get(record.topic)) is not None:
+            offered_qos = offered_qos_yaml(known.qos)
         channel_id = self._channel(record.topic, record.msgtype, record.schema_encoding,
-                                   record.schema_data, record.message_encoding)
+                                   record.schema_data, record.message_encoding, offered_qos)
         self._add(channel_id, record.topic, record.log_time_ns, record.publish_time_ns,
                   record.data)
 
@@ -164,7 +176,8 @@ class RideLogWriter:
         time_ns = stamp_ns(from_time(msg.header.stamp))
         name = topic.name(self.namespace)
         channel_id = self._channel(name, topic.msgtype, SCHEMA_ENCODING,
-                                   msgdef(topic.msgtype).encode(), MESSAGE_ENCODING)
+                                   msgdef(topic.msgtype).encode(), MESSAGE_ENCODING,
+                                   offered_qos_yaml(topic.qos))
         self._add(channel_id, name, time_ns, time_ns, serialize(msg))
 
     def write_sample(self, sample: Sample) -> None:
@@ -389,7 +402,8 @@ def _raw(msg: Message, channel: Channel, schema: Schema | None) -> RawRecord:
         schema_encoding=schema.encoding if schema else "",
         schema_data=bytes(schema.data) if schema else b"",
         message_encoding=channel.message_encoding, log_time_ns=msg.log_time,
-        publish_time_ns=msg.publish_time, data=bytes(msg.data))
+        publish_time_ns=msg.publish_time, data=bytes(msg.data),
+        offered_qos_profiles=channel.metadata.get(OFFERED_QOS_KEY, ""))
 
 
 def _describe(err: BaseException) -> str:

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from dds_support import RIDE_T0_S, Proc, Ride, cached_ride, cli, dds_env, random_domain
 from mcap_readers import rosbags_messages
+from rosbags.highlevel import AnyReader
 
 from itt_msgs_py import serialize, topics, typestore
 from itt_msgs_py.convert import msg_to_advice, msg_to_diagnostics, sample_to_msg
@@ -224,6 +225,11 @@ def test_play_node_record_pipeline_on_loopback(ride: Ride, tmp_path: Path) -> No
         assert all(m.__msgtype__ == info[topic][0] for m in decoded)
     assert len(msgs["/itt/gps/fix"]) >= 0.9 * played["messages"]["/itt/gps/fix"]
     assert len(msgs["/clock"]) > 100  # ros2 bag record -a records /clock too
+    # Recorded with the QoS the publishers offered, as ros2 bag record does.
+    with AnyReader([tmp_path / "out.mcap"]) as reader:
+        offered = {c.topic: c.ext.offered_qos_profiles[0].reliability.name
+                   for c in reader.connections}
+    assert offered["/itt/gps/fix"] == "BEST_EFFORT" and offered["/itt/advice"] == "RELIABLE"
 
     # Advice for the whole ride, on the sim clock.
     assert len(advice) == result["advice_published"] and len(advice) >= 10

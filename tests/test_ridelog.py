@@ -114,6 +114,30 @@ def test_four_readers_agree(ride_log: tuple[Path, list], tmp_path: Path) -> None
     assert got["rosbags"]["/diagnostics"][i].status[0].name == "itt/solver"
 
 
+def test_channels_carry_the_offered_qos_rosbag2_replays(ride_log: tuple[Path, list],
+                                                        tmp_path: Path) -> None:
+    """`offered_qos_profiles` (required by the MCAP ros2 profile) as rosbags reads it:
+    sensors best-effort keep-last 5, outputs reliable; a raw copy keeps the source's."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.interfaces import QosHistory, QosReliability
+
+    path, _ = ride_log
+    copy = tmp_path / "copy.mcap"
+    with RideLogWriter(copy) as w:
+        for record in RideLogReader(path).records():
+            w.write_raw(record._replace(topic=record.topic.replace("/itt/", "/other/")))
+    for log, prefix in ((path, "/itt/"), (copy, "/other/")):
+        with AnyReader([log]) as reader:
+            qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
+        for topic in topics.TOPICS:
+            name = topic.name().replace("/itt/", prefix)
+            (profile,) = qos[name]
+            want = (QosReliability.BEST_EFFORT if topic.direction is topics.Direction.IN
+                    else QosReliability.RELIABLE)
+            assert profile.reliability is want, name
+            assert profile.history is QosHistory.KEEP_LAST and profile.depth == topic.qos.depth
+
+
 def test_truncated_at_random_bytes_yields_everything_before(ride_log: tuple[Path, list],
                                                             tmp_path: Path) -> None:
     path, written = ride_log

@@ -22,6 +22,7 @@ from cyclonedds.domain import DomainParticipant
 from cyclonedds.qos import Policy
 
 from itt_msgs_py import msgdef, topics, typestore
+from itt_msgs_py.qos import offered_qos_yaml
 from itt_planner.dds.endpoints import RawReader
 from itt_planner.dds.wire import ros_topic_name, ros_type_name
 from itt_planner.ridelog import MESSAGE_ENCODING, SCHEMA_ENCODING, RawRecord, RideLogWriter
@@ -65,6 +66,7 @@ class Recorder:
         self.writer = RideLogWriter(output)
         self.counts: Counter[str] = Counter()
         self._readers: dict[str, RawReader] = {}
+        self._offered_qos: dict[str, str] = {}
         self._offered: dict[tuple[str, str], set[bool]] = {}
         self._data = threading.Event()
         self._discovery = BuiltinDataReader(participant, BuiltinTopicDcpsPublication)
@@ -96,6 +98,8 @@ class Recorder:
                                  else topics.Reliability.BEST_EFFORT, RECORD_DEPTH)
                 self._readers[topic] = RawReader(self.participant, topic, msgtype, qos,
                                                  on_data=self._data.set)
+                # Recorded as offered: ros2 bag play offers the same reliability again.
+                self._offered_qos[topic] = offered_qos_yaml(qos)
                 log.info("record: subscribed to %s [%s] (%s)", topic, msgtype,
                          "reliable" if reliable else "best effort")
 
@@ -120,7 +124,7 @@ class Recorder:
                     topic=topic, msgtype=reader.msgtype, schema_encoding=SCHEMA_ENCODING,
                     schema_data=schema, message_encoding=MESSAGE_ENCODING,
                     log_time_ns=now, publish_time_ns=sample.source_timestamp_ns,
-                    data=sample.data))
+                    data=sample.data, offered_qos_profiles=self._offered_qos[topic]))
                 self.counts[topic] += 1
 
     def run(self, stop: threading.Event, duration_s: float | None = None) -> Counter[str]:
