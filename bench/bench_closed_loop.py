@@ -7,7 +7,9 @@ state of that race is re-solved cold (`HorizonPlanner.reset()` before each solve
 start is the full-course plan, not the previous solution). Baseline measured in the same
 run: re-solving the whole REMAINING course with the full-course OCP (`ocp.solve_plan` on
 the course cut at the rider's position, starting at the rider's speed with W' full) at
-a few points: too slow to do at every replan, which is the point.
+a few points: too slow to do at every replan, which is the point. Every plan and
+horizon is solved for `simulate.planning_conditions` (the lateral grip the virtual rider
+uses), so the race's planner believes the truth.
 
 Run: `.venv/bin/python bench/bench_closed_loop.py [--quick]` (--quick: 1 km horizon only,
 a quarter of the race). The race itself is one run per horizon: its ~1000 replans are the
@@ -35,7 +37,7 @@ from itt_planner.horizon import HorizonPlanner, HorizonSettings
 from itt_planner.ocp import OcpSettings, solve_plan
 from itt_planner.plan_cache import load_or_solve
 from itt_planner.rider import PRESETS
-from itt_planner.simulate import simulate_ride
+from itt_planner.simulate import planning_conditions, simulate_ride
 
 RIDER = PRESETS["paper"]
 
@@ -64,14 +66,16 @@ def main() -> None:
     args = ap.parse_args()
     logging.disable(logging.WARNING)
     course = load_course("verona-like")
-    plan = load_or_solve(course, RIDER, Conditions(), OcpSettings(), "3d")
+    # Plans for the lateral grip the virtual rider uses (belief = truth in nominal).
+    belief = planning_conditions(Conditions())
+    plan = load_or_solve(course, RIDER, belief, OcpSettings(), "3d")
     print(f"verona-like {course.length_m / 1000:.2f} km, plan {plan.finish_time_s:.1f} s "
           f"({plan.solver_status}); load average {os.getloadavg()[0]:.1f}", flush=True)
     results: dict[str, object] = {"plan_finish_time_s": plan.finish_time_s}
     horizons = (1000.0,) if args.quick else (1000.0, 500.0)
     max_time = plan.finish_time_s / 4 if args.quick else None
     for horizon in horizons:
-        planner = HorizonPlanner(course, RIDER, plan,
+        planner = HorizonPlanner(course, RIDER, plan, conditions=belief,
                                  settings=HorizonSettings(horizon_m=horizon))
         t0 = time.perf_counter()
         res = simulate_ride(course, RIDER, plan, planner=planner, seed=0,
@@ -107,7 +111,7 @@ def main() -> None:
         rest = _remaining(course, s)
         settings = dataclasses.replace(OcpSettings(), start_speed_mps=float(plan.at("v_mps", s)))
         t0 = time.perf_counter()
-        sol = solve_plan(rest, RIDER, settings=settings)
+        sol = solve_plan(rest, RIDER, belief, settings=settings)
         full.append(time.perf_counter() - t0)
         print(f"  remaining course from {s / 1000:.1f} km ({rest.length_m / 1000:.1f} km): "
               f"{full[-1]:.1f} s ({sol.solver_status})", flush=True)

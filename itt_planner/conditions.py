@@ -6,6 +6,7 @@ blows FROM, clockwise from North) and converted here, once, to an ENU velocity v
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -41,6 +42,23 @@ class Conditions:
         """Build from edge units: wind speed in km/h, direction FROM in degrees (0 = North)."""
         return cls(mu_x=mu, mu_y=mu, wind_speed_mps=wind_kmh / 3.6,
                    wind_from_rad=math.radians(wind_from_deg))
+
+    def with_lateral_grip(self, fraction: float) -> Conditions:
+        """These conditions with `mu_y` scaled by `fraction` (0 < fraction <= 1).
+
+        For planning what a rider can follow: a rider who keeps part of the lateral grip
+        as headroom in a steady turn (the virtual rider of `simulate`) cannot ride a plan
+        that corners at 100 % of `mu_y`, so the optimum for that rider is the plan for
+        the grip it uses. In the model `mu_y` enters only C16's lateral term (and the
+        OCP's initial guess of corner speeds).
+
+        Raises:
+            RiderError: `fraction` outside (0, 1].
+        """
+        if not (math.isfinite(fraction) and 0 < fraction <= 1):
+            msg = f"conditions: lateral grip fraction must be in (0, 1], got {fraction!r}"
+            raise RiderError(msg)
+        return dataclasses.replace(self, mu_y=self.mu_y * fraction)
 
     def wind_enu_mps(self) -> tuple[float, float]:
         """Wind velocity (east, north) in m/s: where the air moves TO."""

@@ -245,6 +245,21 @@ class RiderBehaviour:
     brake_gain: float = 0.5
 
 
+def planning_conditions(conditions: Conditions = Conditions(),
+                        behaviour: RiderBehaviour = RiderBehaviour()) -> Conditions:
+    """What the planner believes when the truth is `conditions` and the rider `behaviour`.
+
+    The road and the air as they are, with the lateral grip the rider really uses in a
+    steady turn (`behaviour.grip_lateral` of `mu_y`). Why: a plan cornering at 100 % of
+    `mu_y` is one this rider cannot follow (it keeps the rest as headroom for leaning
+    in and out), so it is not the optimum for this rider; with these conditions the
+    belief equals the truth in `nominal`, and the plan's finish time is the optimum
+    for the grip the rider uses. Solve the full-course plan with them
+    (`simulate_ride`'s engine plans its horizon with them too).
+    """
+    return conditions.with_lateral_grip(behaviour.grip_lateral)
+
+
 # ---- the closed-loop dynamics -----------------------------------------------------------------
 #: State and reference layout of `_closed_loop_step`.
 _REFS = ("n_ref", "dn_ref_ds", "w_cmd", "v_brake", "kappa_preview")
@@ -483,10 +498,14 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
                   behaviour: RiderBehaviour = RiderBehaviour(),
                   dt_s: float = 0.1, max_time_s: float | None = None,
                   t0_s: float = 0.0, progress: bool = False) -> SimResult:
-    """Ride `course` in closed loop; the planner believes `rider` and `conditions`.
+    """Ride `course` in closed loop on the truth `conditions`.
 
-    The truth differs by `scenario`. With `policy=replanned` the sensor samples feed a
-    `PacingEngine` (built on `planner`, a shared `HorizonPlanner`, or its own), whose
+    The planner believes `rider` and `planning_conditions(conditions, behaviour)`: the
+    same road and air, with the lateral grip the rider uses; `plan` should be solved
+    for those (then, in `nominal`, belief equals truth). The truth differs by
+    `scenario`. With `policy=replanned` the sensor samples feed a
+    `PacingEngine` (built on `planner`, a shared `HorizonPlanner` that keeps its own
+    conditions - build it with `planning_conditions` - or its own), whose
     advice the rider follows from the moment it is published; the other policies follow
     the full-course `plan` or constant CP and need no engine. The rider's noise and the
     sensors draw from `seed`, identically for every policy, so policies compare on the
@@ -512,7 +531,8 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
     sens = Sensors(course, sensors, np.random.default_rng([seed, 2]), t0_s)
     engine = None
     if policy is Policy.REPLANNED:
-        engine = PacingEngine(course, rider, plan, conditions=conditions,
+        engine = PacingEngine(course, rider, plan,
+                              conditions=planning_conditions(conditions, behaviour),
                               settings=engine_settings, planner=planner)  # type: ignore[arg-type]
     grip = (behaviour.grip_lateral, conditions.mu_y)
     decel = behaviour.grip_brake * conditions.mu_x * GRAVITY_MPS2
@@ -615,11 +635,17 @@ def compare_policies(course: Course, rider: Rider, plan: Plan, *,
                      scenario: Scenario | str = Scenario.NOMINAL, seed: int = 0,
                      conditions: Conditions = Conditions(),
                      engine_settings: EngineSettings = EngineSettings(),
-                     planner: object | None = None, **kwargs: object) -> dict[str, object]:
+                     planner: object | None = None,
+                     behaviour: RiderBehaviour = RiderBehaviour(),
+                     **kwargs: object) -> dict[str, object]:
     """The three policies on the same truth, and the figures `itt-planner simulate` prints.
 
-    `kwargs` go to `simulate_ride` (sensors, scenario settings, behaviour, dt_s).
-    Margins are positive when the replanned ride is faster.
+    `behaviour` and `kwargs` go to `simulate_ride` (sensors, scenario settings, dt_s).
+    Margins are positive when the replanned ride is faster. `plan_finish_time_s` is the
+    full-course optimum for the conditions `plan` was solved for: for the grip the
+    rider uses when those are `planning_conditions` (`plan_for_rider_grip` says whether
+    they are, from the plan's metadata; a plan cornering at full grip is one this
+    rider cannot follow).
 
     Raises:
         IttError: unknown scenario.
@@ -627,15 +653,17 @@ def compare_policies(course: Course, rider: Rider, plan: Plan, *,
     runs = {policy: simulate_ride(course, rider, plan, scenario=scenario, seed=seed,
                                   policy=policy, conditions=conditions,
                                   engine_settings=engine_settings, planner=planner,
-                                  **kwargs)  # type: ignore[arg-type]
+                                  behaviour=behaviour, **kwargs)  # type: ignore[arg-type]
             for policy in Policy}
     replanned = runs[Policy.REPLANNED]
     lat = np.array(replanned.solve_times_s) if replanned.solve_times_s else np.zeros(1)
     t_re = replanned.finish_time_s
+    believed = dataclasses.asdict(planning_conditions(conditions, behaviour))
     return {
         "course": course.name, "rider": rider.name, "scenario": Scenario(scenario).value,
         "seed": seed,
         "plan_finish_time_s": round(plan.finish_time_s, 3),
+        "plan_for_rider_grip": plan.meta.get("conditions") == believed,
         **{p.value: runs[p].summary() for p in Policy},
         "margins": {
             "replanned_vs_open_loop_s": round(runs[Policy.OPEN_LOOP].finish_time_s - t_re, 3),

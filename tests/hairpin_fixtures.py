@@ -1,7 +1,10 @@
 """Fixtures of the closed-loop tests: the hairpin test course and its 3D plan.
 
 Import them into a test module (`from hairpin_fixtures import course, plan`); the plan
-is solved once per test run and cached in pytest's cache directory.
+is solved once per test run and cached in pytest's cache directory. It is solved for
+`PLAN_CONDITIONS`, the lateral grip the virtual rider uses (`simulate.planning_conditions`),
+so that in `nominal` the planner's belief equals the simulated truth; planners built in
+the tests take the same conditions.
 """
 
 from __future__ import annotations
@@ -12,9 +15,11 @@ from itt_planner.conditions import Conditions
 from itt_planner.ocp import OcpSettings
 from itt_planner.plan_cache import load_or_solve
 from itt_planner.rider import PRESETS
-from itt_planner.simulate import hairpin_course
+from itt_planner.simulate import hairpin_course, planning_conditions
 
 RIDER = PRESETS["paper"]
+#: What the planner believes: dry road, still air, the rider's lateral grip.
+PLAN_CONDITIONS = planning_conditions(Conditions())
 
 
 @pytest.fixture(scope="module")
@@ -24,5 +29,5 @@ def course():
 
 @pytest.fixture(scope="module")
 def plan(course, request):
-    return load_or_solve(course, RIDER, Conditions(), OcpSettings(), "3d",
+    return load_or_solve(course, RIDER, PLAN_CONDITIONS, OcpSettings(), "3d",
                          cache_dir=request.config.cache.mkdir("itt_plans"))

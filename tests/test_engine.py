@@ -16,13 +16,20 @@ from itt_planner.engine import EngineSettings, PacingEngine
 from itt_planner.horizon import HorizonPlanner, HorizonSettings
 from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
 
-from hairpin_fixtures import RIDER, course, plan  # noqa: F401  (course, plan: fixtures)
+from hairpin_fixtures import (  # noqa: F401  (course, plan: fixtures)
+    PLAN_CONDITIONS, RIDER, course, plan,
+)
 
 #: A short horizon keeps the tests fast; a wall-time budget no loaded CI machine hits
 #: keeps the solver's path deterministic.
 CALM = HorizonSettings(horizon_m=400.0, n_intervals=50, max_wall_time_s=30.0)
 #: Engines in tests judge no overruns unless a test is about them (2 busy cores).
 PATIENT = EngineSettings(max_solve_time_s=30.0)
+
+
+def _planner(course, plan, settings: HorizonSettings = CALM) -> HorizonPlanner:
+    """A horizon planner believing what the plan was solved for."""
+    return HorizonPlanner(course, RIDER, plan, conditions=PLAN_CONDITIONS, settings=settings)
 
 
 def _ride(engine: PacingEngine, course, plan, t_end: float, *, v_scale: float = 1.0,
@@ -46,7 +53,7 @@ def _ride(engine: PacingEngine, course, plan, t_end: float, *, v_scale: float = 
 
 def test_advice_contents(course, plan):
     engine = PacingEngine(course, RIDER, plan, settings=PATIENT,
-                          planner=HorizonPlanner(course, RIDER, plan, settings=CALM))
+                          planner=_planner(course, plan))
     advice = _ride(engine, course, plan, 15.0)
     assert len(advice) == 15
     solved = [a for a in advice if not a.fallback]
@@ -79,7 +86,7 @@ def test_advice_contents(course, plan):
 def test_clocked_by_stamps_only(course, plan):
     engine = PacingEngine(course, RIDER, plan,
                           settings=EngineSettings(replan_period_s=2.0, max_solve_time_s=30.0),
-                          planner=HorizonPlanner(course, RIDER, plan, settings=CALM))
+                          planner=_planner(course, plan))
     assert engine.update(0.0) is None  # no state yet
     engine.on_speed(WheelSpeed(0.0, 5.0))
     assert engine.update(0.0) is None  # speed alone does not place the rider
@@ -94,14 +101,13 @@ def test_clocked_by_stamps_only(course, plan):
 
 
 def test_fallback_keeps_last_good_advice_shifted(course, plan):
-    good = HorizonPlanner(course, RIDER, plan, settings=CALM)
+    good = _planner(course, plan)
     engine = PacingEngine(course, RIDER, plan, settings=PATIENT, planner=good)
     advice = _ride(engine, course, plan, 20.0)
     last_good = [a for a in advice if not a.fallback][-1]
     fallbacks_before = engine.counters.get("fallbacks", 0)
     # The solver now gets no iterations at all: every replan fails for real.
-    engine.planner = HorizonPlanner(course, RIDER, plan,
-                                    settings=HorizonSettings(max_iter=0))
+    engine.planner = _planner(course, plan, HorizonSettings(max_iter=0))
     failed = _ride(engine, course, plan, 25.0, start=20.0)
     assert all(a.fallback for a in failed)
     assert "Maximum_Iterations_Exceeded" in failed[0].solver_status
@@ -129,8 +135,8 @@ def test_fallback_keeps_last_good_advice_shifted(course, plan):
 
 
 def test_fallback_before_any_good_solve_uses_the_plan(course, plan):
-    engine = PacingEngine(course, RIDER, plan, planner=HorizonPlanner(
-        course, RIDER, plan, settings=HorizonSettings(horizon_m=400.0, max_iter=0)))
+    engine = PacingEngine(course, RIDER, plan, planner=_planner(
+        course, plan, HorizonSettings(horizon_m=400.0, max_iter=0)))
     a = _ride(engine, course, plan, 6.0)[-1]
     assert a.fallback
     np.testing.assert_allclose(a.horizon_speed_mps, plan.at("v_mps", a.horizon_s_m))
@@ -139,14 +145,13 @@ def test_fallback_before_any_good_solve_uses_the_plan(course, plan):
 
 
 def test_overrun_is_a_fallback_unless_deterministic(course, plan):
-    planner = HorizonPlanner(course, RIDER, plan, settings=CALM)
+    planner = _planner(course, plan)
     live = PacingEngine(course, RIDER, plan, planner=planner,
                         settings=EngineSettings(max_solve_time_s=0.0))
     advice = _ride(live, course, plan, 4.0)
     assert all(a.fallback and a.solver_status.startswith("overrun") for a in advice)
     assert live.counters["overruns"] == 4
-    replay = PacingEngine(course, RIDER, plan, planner=HorizonPlanner(course, RIDER, plan,
-                                                                       settings=CALM),
+    replay = PacingEngine(course, RIDER, plan, planner=_planner(course, plan),
                           settings=EngineSettings(max_solve_time_s=0.0, deterministic=True))
     advice = _ride(replay, course, plan, 4.0)
     assert not any(a.fallback for a in advice)
@@ -159,7 +164,7 @@ def test_deterministic_replay_is_identical(course, plan):
         engine = PacingEngine(course, RIDER, plan,
                               settings=EngineSettings(deterministic=True,
                                                       max_solve_time_s=0.0),
-                              planner=HorizonPlanner(course, RIDER, plan, settings=CALM))
+                              planner=_planner(course, plan))
         advice = _ride(engine, course, plan, 8.0, v_scale=0.97)
         return advice, engine.diagnostics(12.0)
 
@@ -175,7 +180,7 @@ def test_deterministic_replay_is_identical(course, plan):
 
 def test_bad_inputs_and_staleness_in_diagnostics(course, plan):
     engine = PacingEngine(course, RIDER, plan, settings=PATIENT,
-                          planner=HorizonPlanner(course, RIDER, plan, settings=CALM))
+                          planner=_planner(course, plan))
     _ride(engine, course, plan, 3.0)
     engine.on_power(PowerReading(3.0, math.nan))
     engine.on_speed(WheelSpeed(3.0, -1.0))
@@ -197,7 +202,7 @@ def test_bad_inputs_and_staleness_in_diagnostics(course, plan):
 
 def test_inputs_from_other_threads_while_solving(course, plan):
     engine = PacingEngine(course, RIDER, plan, settings=PATIENT,
-                          planner=HorizonPlanner(course, RIDER, plan, settings=CALM))
+                          planner=_planner(course, plan))
     _ride(engine, course, plan, 2.0)
     errors = []
 
@@ -218,7 +223,7 @@ def test_inputs_from_other_threads_while_solving(course, plan):
 
 
 def test_snapshot_restore_across_a_restart(course, plan):
-    planner = HorizonPlanner(course, RIDER, plan, settings=CALM)
+    planner = _planner(course, plan)
     engine = PacingEngine(course, RIDER, plan, settings=PATIENT, planner=planner)
     _ride(engine, course, plan, 12.0)
     before = engine.state

@@ -43,20 +43,23 @@ def simulate_cli(
     as_json: bool = JSON_OPTION,
 ) -> None:
     """Ride a course in closed loop (3D model in time, noisy sensors, the pacing engine)
-    and compare with following the full-course plan blindly and with even CP pacing."""
+    and compare with following the full-course plan blindly and with even CP pacing.
+    Plans are solved for the lateral grip the virtual rider uses."""
     from itt_planner.conditions import Conditions  # noqa: PLC0415
     from itt_planner.course_loader import load_course  # noqa: PLC0415
     from itt_planner.engine import EngineSettings  # noqa: PLC0415
     from itt_planner.ocp import OcpSettings  # noqa: PLC0415
     from itt_planner.plan_cache import load_or_solve  # noqa: PLC0415
     from itt_planner.rider import load_rider  # noqa: PLC0415
-    from itt_planner.simulate import compare_policies  # noqa: PLC0415
+    from itt_planner.simulate import compare_policies, planning_conditions  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         built = load_course(course)
         who = load_rider(rider)
         conditions = Conditions()
-        plan = load_or_solve(built, who, conditions, OcpSettings(), "3d", cache_dir=cache_dir)
+        # The optimum for the grip the virtual rider uses (belief = truth in nominal).
+        plan = load_or_solve(built, who, planning_conditions(conditions), OcpSettings(), "3d",
+                             cache_dir=cache_dir)
         result = compare_policies(
             built, who, plan, scenario=scenario, seed=seed, conditions=conditions,
             engine_settings=EngineSettings(replan_period_s=replan_period_s,
