@@ -14,7 +14,10 @@ pipeline here:
    three O(n) passes): two with a moderate smoothing length that locate the corners and
    re-parametrise each fix by its foot point on the curve, then one whose smoothing length
    adapts to the road (30 m on straights, where it keeps the noise out of the curvature,
-   0.45 x the local radius but at least 12 m in corners). All lengths scale with the noise
+   0.42 x the local radius but at least 10 m in corners). Only stretches whose heading
+   turns by more than ~30 deg within +-30 m count as corners: the second pass bends by a
+   few degrees on a noisy straight, and without that gate each bump got a short smoothing
+   length and survived as a spurious 150-300 m "corner". All lengths scale with the noise
    measured after the first pass;
 5. resample at uniform arc length of the fitted curve, heading from the spline derivative,
    then a Gaussian filter on the heading (spreads the curvature bursts that the last few
@@ -59,6 +62,9 @@ class FitSettings:
         min_scale_m: shortest smoothing length, in the tightest corners.
         radius_scale: smoothing length as a fraction of the local radius in corners.
         corner_search_scale_m: smoothing length of the first passes that locate corners.
+        corner_turn_rad: a stretch is a corner (and gets a shorter smoothing length) only
+            if the heading of the first-pass curve changes by more than this across
+            +-`straight_scale_m`; noise on a straight does not.
         nominal_noise_m: GPS noise the smoothing lengths are tuned for; they scale with the
             noise measured on the track, but by no less than `min_noise_factor` (device
             tracks are pre-filtered and look cleaner than they are).
@@ -76,12 +82,13 @@ class FitSettings:
     max_speed_mps: float = 30.0
     spike_window: int = 30
     straight_scale_m: float = 30.0
-    min_scale_m: float = 12.0
-    radius_scale: float = 0.45
+    min_scale_m: float = 10.0
+    radius_scale: float = 0.42
     corner_search_scale_m: float = 15.0
+    corner_turn_rad: float = 0.5
     nominal_noise_m: float = 3.0
     min_noise_factor: float = 0.75
-    heading_sigma_m: float = 10.0
+    heading_sigma_m: float = 9.0
     drift_scale_m: float = 100.0
     altitude_scale_m: float = 60.0
     max_grade: float = 0.25
@@ -329,6 +336,16 @@ def _fit_plan(track: Track, st: FitSettings
         u_fit = _reparametrise(spl, u_fit, xy_fit)
         if k == 2:
             kap = np.abs(_curvature(spl, u_fit))
+            # Noise bends a straight a few degrees back and forth, a corner turns one way.
+            # Only where the heading changes by `corner_turn_rad` across +-straight_scale_m
+            # does the local radius shorten the smoothing length; otherwise a noise bump on
+            # a straight shortens it and survives into the final curvature.
+            d1 = spl.derivative(1)(u_fit)
+            th = np.unwrap(np.arctan2(d1[:, 1], d1[:, 0]))
+            reach = st.straight_scale_m * noise
+            turn = np.abs(np.interp(u_fit + reach, u_fit, th)
+                          - np.interp(u_fit - reach, u_fit, th))
+            kap = np.where(turn > st.corner_turn_rad, kap, 0.0)
             win = max(3, int(st.straight_scale_m / max(np.median(np.diff(u_fit)), 1e-3)) | 1)
             kap = maximum_filter1d(kap, win, mode="nearest")
             h = np.clip(st.radius_scale / np.maximum(kap, 1e-9), st.min_scale_m,

@@ -74,35 +74,56 @@ def _errors(seed: int) -> tuple[float, float, dict[float, list[float]], list[str
     return course.length_m / length - 1.0, straight, errors, [c.direction for c in course.corners]
 
 
+def bar_passes(length_err: float, straight: float, errors: dict[float, list[float]]
+               ) -> dict[str, int]:
+    """The issue's bars on one seed: how many bends of each radius are within 25 % (R40
+    has two), length within 0.5 %, straights > 300 m, and `all` = 1 if all of them hold."""
+    ok = {r: sum(abs(e) < 0.25 for e in errs) for r, errs in errors.items()}
+    bars = {"R12": ok[12.0], "R40": ok[40.0], "R25": ok[25.0],
+            "length": int(abs(length_err) < 0.005), "straights": int(straight > 300.0)}
+    every = all(ok[r] == len(errs) for r, errs in errors.items())
+    return bars | {"all": int(every and bars["length"] and bars["straights"])}
+
+
 def test_synthetic_track_over_seeds_0_to_19() -> None:
     """Every seed of a fixed block (0-19), no picking.
 
     The issue's per-seed bar (every corner within 25 %, length within 0.5 %, straights
-    > 300 m) is NOT met on every seed: the fit meets all of it on 4 of these 20 seeds
-    (see bench/RESULTS.md). What holds on every seed, and is asserted here: the
-    four bends are found with the right directions, the hairpin within 25 %, the S-bend
-    and the 25 m corner within 60 %, the length within 1.5 %, no straight below 150 m;
-    and over the block, the median error of each bend within 25 % and the median length
-    error within 0.5 %. The bars below are the measured spread plus a small margin, so a
-    change that makes the fit worse fails here.
+    > 300 m) is NOT met on every seed, and at 3 m noise with 3-5 fixes per corner it is
+    out of statistical reach: the maximum-likelihood fit that KNOWS the layout (lines and
+    tangent arcs in the true order) and the sampler (ends, 5-15 m gaps),
+    `bench/bench_course.py --oracle`, meets it on 10 of these 20 seeds (hairpin 20/20,
+    S-bend arcs 35/40, 25 m corner 13/20, length 17/20) and on 101 of seeds 0-199
+    (R25 150/200, S-bend arcs 348/400, length 168/200). `fit_course` (no layout knowledge)
+    meets all of it on 5 of 20 (seeds 4, 8, 10, 15, 18): hairpin 20/20, S-bend arcs
+    32/40, 25 m corner 14/20, length 14/20, straights 17/20 (`--accuracy 20`); on 61 of
+    seeds 0-199 (32 before the corner gate and re-tuning of 2026-11-30, 4 of 0-19).
+    Asserted here, each the measured value with a small margin so that a change that
+    makes the fit worse fails: on every seed the four bends are found with the right
+    directions, the hairpin within 25 % (worst today +24 %, seed 13), the S-bend and the
+    25 m corner within 60 % (worst -55 %), the length within 1.2 % (worst -1.03 %), no
+    straight below 200 m (worst 250 m); the medians of each bend's error and of the
+    length error within the bar; and the per-bar pass counts above as floors.
     """
-    lengths, passes = [], 0
+    lengths = []
+    counts = dict.fromkeys(["R12", "R40", "R25", "length", "straights", "all"], 0)
     per_radius: dict[float, list[float]] = {12.0: [], 40.0: [], 25.0: []}
     for seed in SEEDS:
         length_err, straight, errors, directions = _errors(seed)
         assert directions == ["left", "right", "left", "right"], seed
-        assert abs(length_err) < 0.015, (seed, length_err)
-        assert straight > 150.0, (seed, straight)
+        assert abs(length_err) < 0.012, (seed, length_err)
+        assert straight > 200.0, (seed, straight)
         assert all(abs(e) < 0.25 for e in errors[12.0]), (seed, errors)
         assert all(abs(e) < 0.60 for e in errors[40.0] + errors[25.0]), (seed, errors)
         for r, e in errors.items():
             per_radius[r].extend(e)
         lengths.append(abs(length_err))
-        passes += (abs(length_err) < 0.005 and straight > 300.0
-                   and all(abs(e) < 0.25 for e in sum(errors.values(), [])))
+        for key, value in bar_passes(length_err, straight, errors).items():
+            counts[key] += value
     assert all(float(np.median(np.abs(e))) < 0.25 for e in per_radius.values())
     assert float(np.median(lengths)) < 0.005
-    assert passes >= 4
+    floors = {"R12": 20, "R40": 32, "R25": 14, "length": 14, "straights": 17, "all": 5}
+    assert all(counts[k] >= v for k, v in floors.items()), counts
 
 
 def test_tokyo_lap_is_a_closed_loop_of_22_1_km(shared_data: Path) -> None:
