@@ -28,7 +28,12 @@ def test_demo_bag_is_small_simulated_and_complete(name: str) -> None:
     path = BAGS / name
     assert path.stat().st_size <= 5 * 1024 * 1024
     with path.open("rb") as fh:
-        meta = {m.name: m.metadata for m in make_reader(fh).iter_metadata()}
+        reader = make_reader(fh)
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+        channels = reader.get_summary().channels.values()
+        # Sensors offered best-effort, as ros2 bag play must offer them again.
+        assert all("reliability: best_effort" in c.metadata["offered_qos_profiles"]
+                   for c in channels)
     assert "SIMULATED" in meta[METADATA_NAME]["source"]
     assert meta[METADATA_NAME]["rider"] == DEMO[name][1]
     topics: dict[str, list[float]] = {}
