@@ -80,7 +80,7 @@ import numpy as np
 
 from itt_planner.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.course import Course
-from itt_planner.mesh import road_data, road_half_widths, target_spacing
+from itt_planner.mesh import road_data, target_spacing
 from itt_planner.model import ModelParams, build_3d_steady_lean, steady_lean_rad
 from itt_planner.ocp import U_DELTA_MAX, U_W_MAX, V_MIN_MPS
 from itt_planner.plan import Plan
@@ -362,9 +362,8 @@ class HorizonPlanner:
         """Simple bounds per node: C11-C14, v >= v_min; the first node fixed at `x0`."""
         m, c, n = self._model, self.course, len(nodes)
         lbx, ubx = np.full((m.nx, n), -np.inf), np.full((m.nx, n), np.inf)
-        left, right = road_half_widths(c, nodes)
-        lbx[m.index("n")] = -(right - self.settings.margin_m)  # C11
-        ubx[m.index("n")] = left - self.settings.margin_m
+        lbx[m.index("n")] = -(c.at("width_right_m", nodes) - self.settings.margin_m)  # C11
+        ubx[m.index("n")] = c.at("width_left_m", nodes) - self.settings.margin_m
         lbx[m.index("alpha")], ubx[m.index("alpha")] = -_ALPHA_MAX_RAD, _ALPHA_MAX_RAD
         lbx[m.index("v")] = V_MIN_MPS
         lbx[m.index("w_n")], ubx[m.index("w_n")] = -1.0, 1.0  # C13

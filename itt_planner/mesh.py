@@ -72,32 +72,3 @@ def road_data(course: Course, nodes: np.ndarray) -> np.ndarray:
     beta = np.arctan(np.diff(z) / ds)
     theta_mid = course.at("theta_rad", 0.5 * (nodes[1:] + nodes[:-1]))
     return np.vstack([kappa, beta, theta_mid, ds])
-
-
-def road_half_widths(course: Course, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Left and right half-widths per node for C11: the narrowest of the road over the
-    node's two adjacent intervals.
-
-    A line between two nodes is the interpolation of their `n`; bounding `n` by the width
-    AT the nodes lets it leave the road where the width steps down between them (0.5 m
-    past the edge was measured on verona-like at a 4 -> 3 m step between nodes 3.4 m
-    apart). The narrowest width over the interval keeps every point of it on the road.
-    """
-    def per_interval(field: str) -> np.ndarray:
-        width = getattr(course, field)
-        at_nodes = course.at(field, nodes)
-        lo = np.minimum(at_nodes[:-1], at_nodes[1:])
-        # Samples of the course grid strictly inside each interval (none in short ones).
-        first = np.searchsorted(course.s_m, nodes[:-1], side="right")
-        last = np.searchsorted(course.s_m, nodes[1:], side="left")
-        inside = last > first
-        # reduceat over the [first, last) pairs; the sentinel makes index len(width) valid.
-        padded = np.append(width, np.inf)
-        inner = np.minimum.reduceat(padded, np.column_stack([first, last]).ravel())[::2]
-        lo[inside] = np.minimum(lo[inside], inner[inside])
-        return lo
-
-    def per_node(interval: np.ndarray) -> np.ndarray:
-        return np.minimum(np.append(interval, interval[-1]), np.insert(interval, 0, interval[0]))
-
-    return (per_node(per_interval("width_left_m")), per_node(per_interval("width_right_m")))

@@ -32,7 +32,7 @@ import numpy as np
 from itt_planner.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.course import Course
 from itt_planner.errors import SolveError
-from itt_planner.mesh import build_mesh, road_data, road_half_widths
+from itt_planner.mesh import build_mesh, road_data
 from itt_planner.model import (
     CONTROLS_1D,
     CONTROLS_3D,
@@ -248,9 +248,8 @@ def bounds(model: SpatialModel, course: Course, nodes: np.ndarray, rider: Rider,
     lbx[model.index("e_n")], ubx[model.index("e_n")] = 0.0, 1.0  # C12
     lbx[model.index("e_n"), -1] = settings.e_final_min
     if model.name == "3d":
-        left, right = road_half_widths(course, nodes)
-        lbx[model.index("n")] = -(right - settings.margin_m)  # C11
-        ubx[model.index("n")] = left - settings.margin_m
+        lbx[model.index("n")] = -(course.at("width_right_m", nodes) - settings.margin_m)  # C11
+        ubx[model.index("n")] = course.at("width_left_m", nodes) - settings.margin_m
         lbx[model.index("delta_n")], ubx[model.index("delta_n")] = -1.0, 1.0  # C14
         lbx[model.index("alpha")], ubx[model.index("alpha")] = -1.0, 1.0
         lbx[model.index("phi")], ubx[model.index("phi")] = -1.2, 1.2
