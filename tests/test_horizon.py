@@ -18,7 +18,7 @@ from itt_planner.ocp import solve_plan
 from itt_planner.plan import Plan
 from itt_planner.rider import PRESETS, Rider
 from itt_planner.state import RiderState
-from tests.test_ocp import hairpin
+from test_ocp import hairpin
 
 COURSE = hairpin(straight_m=600.0)
 
