@@ -10,7 +10,6 @@ rosbag2 read it back.
 
 from __future__ import annotations
 
-from functools import lru_cache
 from io import StringIO
 
 from rosbags.interfaces import (
@@ -48,12 +47,8 @@ def to_rosbags(qos: QoS) -> Qos:
     )
 
 
-@lru_cache(maxsize=64)
 def offered_qos_yaml(*profiles: QoS) -> str:
-    """The `offered_qos_profiles` value for a topic whose publishers offered `profiles`.
-
-    Cached: writers ask once per message, and the few profiles of the interface repeat.
-    """
+    """The `offered_qos_profiles` value for a topic whose publishers offered `profiles`."""
     stream = StringIO()
     yaml = YAML(typ="safe")
     yaml.default_flow_style = False

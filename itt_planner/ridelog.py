@@ -4,8 +4,8 @@ A ride log is a single `.mcap` file that `ros2 bag play`, Foxglove, rosbags and 
 open as they are: each channel carries the full concatenated `.msg` definition as its
 schema and the QoS its publishers offered (`offered_qos_profiles`, as rosbag2 records
 it, so `ros2 bag play` offers sensors best-effort again), each message the CDR payload,
-and log time = publish time = the message's header stamp (the ride clock). A metadata record `itt_ride` names the source file, its SHA-256,
-the device and the rider.
+and log time = publish time = the message's header stamp (the ride clock). A metadata
+record `itt_ride` names the source file, its SHA-256, the device and the rider.
 
 Reading streams the file record by record, so a log cut short by a crash or damaged in
 the middle still gives back every message before the damage (and after a corrupted
@@ -143,7 +143,9 @@ class RideLogWriter:
             self._file.close()
 
     def _channel(self, topic: str, msgtype: str, schema_encoding: str, schema_data: bytes,
-                 message_encoding: str, offered_qos: str) -> int:
+                 message_encoding: str, offered_qos: str = "") -> int:
+        """The channel id; a new channel carries `offered_qos`, or without it the
+        interface's QoS when `topic` is one of ours."""
         schema_key = (msgtype, schema_encoding, schema_data)
         schema_id = self._schemas.get(schema_key)
         if schema_id is None:
@@ -152,6 +154,8 @@ class RideLogWriter:
         channel_key = (topic, schema_id, message_encoding)
         channel_id = self._channels.get(channel_key)
         if channel_id is None:
+            if not offered_qos and (known := self._topics.get(topic)) is not None:
+                offered_qos = offered_qos_yaml(known.qos)
             channel_id = self._writer.register_channel(
                 topic, message_encoding, schema_id, metadata={OFFERED_QOS_KEY: offered_qos})
             self._channels[channel_key] = channel_id
@@ -163,11 +167,9 @@ class RideLogWriter:
 
     def write_raw(self, record: RawRecord) -> None:
         """Copy a stored message as it is (schema, encoding, times and bytes)."""
-        offered_qos = record.offered_qos_profiles
-        if not offered_qos and (known := self._topics.get(record.topic)) is not None:
-            offered_qos = offered_qos_yaml(known.qos)
         channel_id = self._channel(record.topic, record.msgtype, record.schema_encoding,
-                                   record.schema_data, record.message_encoding, offered_qos)
+                                   record.schema_data, record.message_encoding,
+                                   record.offered_qos_profiles)
         self._add(channel_id, record.topic, record.log_time_ns, record.publish_time_ns,
                   record.data)
 
@@ -176,8 +178,7 @@ class RideLogWriter:
         time_ns = stamp_ns(from_time(msg.header.stamp))
         name = topic.name(self.namespace)
         channel_id = self._channel(name, topic.msgtype, SCHEMA_ENCODING,
-                                   msgdef(topic.msgtype).encode(), MESSAGE_ENCODING,
-                                   offered_qos_yaml(topic.qos))
+                                   msgdef(topic.msgtype).encode(), MESSAGE_ENCODING)
         self._add(channel_id, name, time_ns, time_ns, serialize(msg))
 
     def write_sample(self, sample: Sample) -> None:
