@@ -82,7 +82,7 @@ from itt_planner.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.course import Course
 from itt_planner.mesh import road_data, target_spacing
 from itt_planner.model import ModelParams, build_3d_steady_lean, steady_lean_rad
-from itt_planner.ocp import U_DELTA_MAX, U_W_MAX, V_MIN_MPS
+from itt_planner.ocp import PLAN_ARRAYS, U_DELTA_MAX, U_W_MAX, V_MIN_MPS
 from itt_planner.plan import Plan
 from itt_planner.rider import Rider
 from itt_planner.state import RiderState
@@ -307,11 +307,10 @@ class HorizonPlanner:
     def _plan_guess(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         m, plan = self._model, self.plan
         x = np.zeros((m.nx, len(nodes)))
-        for name, attr in (("n", "n_m"), ("alpha", "alpha_rad"), ("v", "v_mps"),
-                           ("w_n", "w_n"), ("e_n", "e_n")):
-            x[m.index(name)] = plan.at(attr, nodes)
+        for name in ("n", "alpha", "v", "w_n", "e_n"):
+            x[m.index(name)] = plan.at(PLAN_ARRAYS[name], nodes)
         x[m.index("delta_n")] = self._plan_delta_n(nodes)
-        u = np.vstack([plan.at("u_delta", nodes[:-1]), plan.at("u_w", nodes[:-1])])
+        u = np.vstack([plan.at(PLAN_ARRAYS[name], nodes[:-1]) for name in ("u_delta", "u_w")])
         return x, u
 
     def _guess(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
