@@ -41,9 +41,16 @@ Design choices:
   evenly over what is left of the course, rather than within the next kilometre. It is
   a soft lower bound (slack with a steep penalty, ~45x a realistic W' price), so a W'
   deficit never makes the NLP infeasible, yet W' is not overspent for a seemingly
-  faster horizon. The speed at the horizon end is pulled to the plan's speed there
-  (quadratic, `v_weight`), because kinetic energy carried over the horizon end is worth
-  time later; without it the horizon would coast to a crawl at its end.
+  faster horizon. The speed carried over the horizon end is worth time later: it is
+  priced with the plan's costate there (`Plan.costate_v_s_per_mps`, d(finish time)/dv
+  along the optimum: the first-order cost-to-go), plus a quadratic pull (`v_weight`) to
+  the plan's speed. A quadratic pull alone has no slope at the plan's speed, so every
+  window eased off towards its end to sell speed that costs ~1 s per m/s later; as the
+  end moves on with every replan, the rider never eased off but rode 8-12 W over the
+  plan up the verona-like climb and emptied W' 3.5 kJ early (bench/RESULTS.md).
+- Corner speeds from the plan: where the plan corners at the grip limit, the horizon
+  may not plan faster than the plan (`corner_speed_cap`): the steady-lean model below
+  cannot know what leaning in costs.
 - Warm start from the previous usable solution shifted in `s` (interpolated onto the
   new nodes, the plan beyond its end), re-anchored at the measured state; measured
   options in bench/RESULTS.md. An unusable iterate is never reused as a start:
@@ -152,6 +159,10 @@ class HorizonSettings:
             the cold retry's (from the plan) when the warm attempt is not usable.
         reset_after_failures: after this many unusable replans in a row the last good
             solution is dropped and the next replan starts from the plan.
+        corner_cap_use, corner_cap_tol_mps, corner_cap_brake_g: where the plan's friction
+            use is at least `corner_cap_use`, the horizon's speed is capped at the plan's
+            plus `corner_cap_tol_mps`, or what braking at `corner_cap_brake_g` g from the
+            rider's speed reaches (`corner_speed_cap`).
     """
 
     horizon_m: float = 1000.0
@@ -176,6 +187,9 @@ class HorizonSettings:
     grip_tol: float = 0.02
     warm_share: float = 0.6
     reset_after_failures: int = 3
+    corner_cap_use: float = 0.9
+    corner_cap_tol_mps: float = 0.5
+    corner_cap_brake_g: float = 0.3
 
 
 @dataclass(frozen=True, eq=False)
@@ -365,6 +379,7 @@ class HorizonPlanner:
         ubx[m.index("n")] = c.at("width_left_m", nodes) - self.settings.margin_m
         lbx[m.index("alpha")], ubx[m.index("alpha")] = -_ALPHA_MAX_RAD, _ALPHA_MAX_RAD
         lbx[m.index("v")] = V_MIN_MPS
+        ubx[m.index("v")] = self.corner_speed_cap(nodes, float(x0[m.index("v")]))
         lbx[m.index("w_n")], ubx[m.index("w_n")] = -1.0, 1.0  # C13
         lbx[m.index("delta_n")], ubx[m.index("delta_n")] = -1.0, 1.0  # C14
         lbx[m.index("e_n")], ubx[m.index("e_n")] = 0.0, 1.0  # C12
@@ -372,6 +387,26 @@ class HorizonPlanner:
         lbx[:, 0] = ubx[:, 0] = x0
         u_max = np.array([[U_DELTA_MAX], [U_W_MAX]])
         return lbx, ubx, np.repeat(-u_max, n - 1, axis=1), np.repeat(u_max, n - 1, axis=1)
+
+    def corner_speed_cap(self, nodes: np.ndarray, v0: float) -> np.ndarray:
+        """Upper speed bound per node: the plan's speed where the plan corners at the grip
+        limit (friction use >= `corner_cap_use`), plus `corner_cap_tol_mps`.
+
+        Why: there the speed is set by grip and by leaning in and out, and the plan,
+        solved with the roll dynamics E4-E5, knows what that costs; the steady-lean
+        horizon model does not (it tips into a lean at once), so on its own it planned
+        braking later and entering tight corners 0.5-1 m/s faster than any rider can
+        lean in, and a rider following that ran wide (bench/RESULTS.md). Elsewhere the
+        speed stays free (pacing). The cap never asks for more than braking at
+        `corner_cap_brake_g` g from the rider's speed gives (a rider measured too fast
+        still has a feasible NLP).
+        """
+        st, plan = self.settings, self.plan
+        cap = np.where(plan.at("friction_use", nodes) >= st.corner_cap_use,
+                       plan.at("v_mps", nodes) + st.corner_cap_tol_mps, np.inf)
+        reach = np.sqrt(np.maximum(
+            v0 ** 2 - 2 * st.corner_cap_brake_g * GRAVITY_MPS2 * (nodes - nodes[0]), 0.0))
+        return np.maximum(cap, np.maximum(reach, V_MIN_MPS))
 
     # ---- solve -------------------------------------------------------------------------------
     def solve(self, state: RiderState) -> HorizonSolution:
@@ -389,7 +424,8 @@ class HorizonPlanner:
         remaining = max(self.course.length_m - s0, 1.0)
         beyond = (self.course.length_m - end) / remaining
         e_target = float(self.plan.at("e_n", end)) + e_dev * beyond
-        terminal = np.array([e_target, float(self.plan.at("v_mps", end)), st.v_weight])
+        terminal = np.array([e_target, float(self.plan.at("v_mps", end)), st.v_weight,
+                             float(self.plan.at("costate_v_s_per_mps", end))])
         p = tr.params(road_data(self.course, nodes), self._par, terminal)
         lbw = lay.join(lbx, lbu, np.zeros((lay.ns, lay.n_intervals)), 0.0)
         ubw = lay.join(ubx, ubu, np.full((lay.ns, lay.n_intervals), np.inf), np.inf)

@@ -331,15 +331,20 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     if guess is not None:
         meta["guess"] = {"model": guess.model, "n_nodes": guess.n_nodes,
                          "finish_time_s": guess.finish_time_s}
-    return to_plan(tr, w, p, nodes, rider, status=status, iterations=iterations,
-                   solve_time_s=elapsed, meta=meta)
+    return to_plan(tr, w, p, np.asarray(sol["lam_g"]).ravel(), nodes, rider, status=status,
+                   iterations=iterations, solve_time_s=elapsed, meta=meta)
 
 
-def to_plan(tr: Transcription, w: np.ndarray, p: np.ndarray, nodes: np.ndarray, rider: Rider,
-            *, status: str, iterations: int, solve_time_s: float, meta: dict) -> Plan:
-    """Turn a numeric NLP solution into a `Plan` (SI units, lateral arrays 0 for 1D)."""
-    spm = tr.model
-    x, u, _ = tr.layout.split(w)
+def to_plan(tr: Transcription, w: np.ndarray, p: np.ndarray, lam_g: np.ndarray,
+            nodes: np.ndarray, rider: Rider, *, status: str, iterations: int,
+            solve_time_s: float, meta: dict) -> Plan:
+    """Turn a numeric NLP solution (primal `w`, constraint multipliers `lam_g`) into a
+    `Plan` (SI units, lateral arrays 0 for 1D)."""
+    spm, lay = tr.model, tr.layout
+    x, u, _ = lay.split(w)
+    # The multiplier of the continuity gap `F(x_k) - x_{k+1}` is d(objective)/d(x_{k+1}):
+    # the adjoint. Node 0 is fixed by its bounds; it takes node 1's value.
+    lam_v = lam_g[: lay.nx * lay.n_intervals].reshape(lay.n_intervals, lay.nx)[:, spm.index("v")]
     dt, y = (np.asarray(a) for a in tr.evaluate(w, p))
     t = np.concatenate([[0.0], np.cumsum(dt.ravel())])
     zeros = np.zeros(len(nodes))
@@ -356,7 +361,8 @@ def to_plan(tr: Transcription, w: np.ndarray, p: np.ndarray, nodes: np.ndarray, 
     return Plan(
         model=spm.name, s_m=np.asarray(nodes, float), t_s=t, **arrays, power_w=y[0],
         w_prime_j=state("e_n") * rider.w_prime_j, ax_mps2=y[1], ay_mps2=y[2],
-        friction_use=y[3], solver_status=status, iterations=iterations,
+        friction_use=y[3], costate_v_s_per_mps=np.concatenate([lam_v[:1], lam_v]),
+        solver_status=status, iterations=iterations,
         solve_time_s=solve_time_s, meta=meta,
     )
 

@@ -23,6 +23,7 @@ _FORMAT = "itt-planner-plan"
 PLAN_ARRAYS = (
     "s_m", "t_s", "n_m", "alpha_rad", "phi_rad", "phi_dot_radps", "v_mps", "w_n", "delta_n",
     "e_n", "u_delta", "u_w", "power_w", "w_prime_j", "ax_mps2", "ay_mps2", "friction_use",
+    "costate_v_s_per_mps",
 )
 
 
@@ -35,6 +36,10 @@ class Plan:
         ax_mps2: tyre longitudinal force per unit mass (model.md C16).
         ay_mps2: lateral (centripetal) acceleration `v^2 tan(delta) / L`.
         friction_use: the friction-ellipse left-hand side of C16 (<= 1 when feasible).
+        costate_v_s_per_mps: what one more m/s at a node is worth in objective (~finish
+            time) from there on, along the optimum (negative: speed saves time); the
+            IPOPT multiplier of that node's speed continuity constraint (the adjoint).
+            The receding horizon prices the speed it carries past its end with it.
     """
 
     model: str
@@ -55,6 +60,7 @@ class Plan:
     ax_mps2: np.ndarray
     ay_mps2: np.ndarray
     friction_use: np.ndarray
+    costate_v_s_per_mps: np.ndarray
     solver_status: str
     iterations: int
     solve_time_s: float

@@ -35,8 +35,10 @@ import numpy as np
 from itt_planner.codegen import compiled
 from itt_planner.model import PARAMS, ROAD, SpatialModel, rk4_step
 
-#: Terminal data of the soft terminal treatment: [E_n target, v target, v weight (s/(m/s)^2)].
-TERMINAL = ("e_n_target", "v_target", "v_weight")
+#: Terminal data of the soft terminal treatment: [E_n target, v target, v weight
+#: (s/(m/s)^2), v price (s/(m/s): the change of the time to go per m/s carried over the
+#: end, negative when speed saves time)].
+TERMINAL = ("e_n_target", "v_target", "v_weight", "v_price")
 #: Penalty of the terminal W' slack relative to the path-constraint slacks.
 _TERMINAL_SLACK_FACTOR = 10.0
 
@@ -168,7 +170,8 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
         substeps: RK4 steps per interval.
         soft: soften the path constraints with penalised slacks (L1 + L2, one per stage
             and constraint) and add the soft terminal treatment (`TERMINAL`):
-            `E_n(N) >= e_n_target - e` and `v_weight * (v(N) - v_target)^2`.
+            `E_n(N) >= e_n_target - e`, and
+            `v_price * (v(N) - v_target) + v_weight * (v(N) - v_target)^2`.
         slack_weight: penalty per unit slack (seconds of objective).
         compile_c: compile the stage kernels to C (cached per machine).
     """
@@ -207,7 +210,7 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
         path = path - ca.horzcat(slacks, slacks[:, n - 1])
         f = f + slack_weight * (ca.sum1(ca.sum2(slacks)) + ca.sumsqr(slacks))
         f = f + _TERMINAL_SLACK_FACTOR * slack_weight * (e_slack + e_slack ** 2)
-        f = f + term[2] * (x_last[iv] - term[1]) ** 2
+        f = f + term[3] * (x_last[iv] - term[1]) + term[2] * (x_last[iv] - term[1]) ** 2
         g = ca.vertcat(g_gap, ca.vec(path), term[0] - x_last[ie] - e_slack)
     else:
         g = ca.vertcat(g_gap, ca.vec(path))
@@ -217,7 +220,7 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     # ---- gradient of f ----------------------------------------------------------------------
     _, _, jac_z, grad_z = jf_k.map(n)(xs[:, :n], us, road, par)
     stage_grad = [grad_z]
-    tail = [2 * term[2] * (x_last[iv] - term[1]) * ca.DM.eye(nx)[:, iv]]
+    tail = [(term[3] + 2 * term[2] * (x_last[iv] - term[1])) * ca.DM.eye(nx)[:, iv]]
     if soft:
         stage_grad.append(slack_weight * (1 + 2 * slacks))
         tail.append(_TERMINAL_SLACK_FACTOR * slack_weight * (1 + 2 * e_slack))

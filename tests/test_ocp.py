@@ -89,6 +89,18 @@ def test_steady_state_matches_power_balance() -> None:
     assert v_ss > 0
 
 
+def test_speed_costate_is_the_finish_time_sensitivity() -> None:
+    """The plan's speed costate (the horizon's price of terminal speed) is d(finish time)/dv:
+    a start 0.2 m/s faster finishes sooner by about costate x 0.2 s (both models)."""
+    course, rider = straight(), PRESETS["paper"]
+    for model in ("1d", "3d"):
+        slow = solve_plan(course, rider, settings=OcpSettings(start_speed_mps=10.0), model=model)
+        fast = solve_plan(course, rider, settings=OcpSettings(start_speed_mps=10.2), model=model)
+        sensitivity = (fast.finish_time_s - slow.finish_time_s) / 0.2
+        assert sensitivity < 0
+        assert slow.costate_v_s_per_mps[0] == pytest.approx(sensitivity, rel=0.1)
+
+
 def test_1d_and_3d_agree_on_a_straight() -> None:
     c = straight()
     t3 = solve_plan(c, PRESETS["paper"], model="3d").finish_time_s
