@@ -270,8 +270,9 @@ def _closed_loop_step(behaviour: RiderBehaviour, substeps: int) -> ca.Function:
     controller: `(x, s, road, p, ref, dt) -> (x_next, s_next)`.
 
     Time domain: `dx/dt = (dx/ds) / (dt/ds)` and `ds/dt = 1 / (dt/ds)` (E8).
-    Lateral control, a cascade any rider does without thinking: the heading error to the
-    reference line sets a desired yaw rate; the steady lean of that turn,
+    Lateral control, a cascade any rider does without thinking: the reference line's
+    curvature a moment ahead (feed-forward) and the heading error to the line set a
+    desired yaw rate; the steady lean of that turn,
     `tan(phi) = -v r / g` (E5), is the desired lean; steering is chosen so the roll
     dynamics E5 follow it with a critically damped response (feedback linearisation of
     E5 for the yaw rate, then `delta = atan(r L / v)`). Steering is imposed directly
@@ -301,13 +302,14 @@ def _closed_loop_step(behaviour: RiderBehaviour, substeps: int) -> ca.Function:
         n, alpha, phi, phi_dot, v, w_n, _, e_n = (xk[i] for i in range(model.nx))
         kappa = road[0]
         one_nk = 1 - n * kappa
-        s_dot = v * ca.cos(alpha) / one_nk
         alpha_ref = ca.atan(dn_ref_ds * one_nk)
         # The lateral loop must stay well slower than the heading loop: its gain in
         # 1/s is `k_lateral_ps` whatever the speed (dn/dt = v alpha).
         err_n = ca.fmin(ca.fmax(b.k_lateral_ps * (n - n_ref) / ca.fmax(v, 3.0), -0.3), 0.3)
-        # Feed-forward on the curvature a moment ahead: leaning in takes time.
-        yaw_des = kappa_ff * s_dot + b.k_heading_ps * (alpha_ref - err_n - alpha)
+        # Feed-forward on the curvature of the LINE followed, a moment ahead (leaning in
+        # takes time): a line that cuts a hairpin turns unlike the road; steering by the
+        # road's curvature left the rider 2-5 m off the line there (bench/RESULTS.md).
+        yaw_des = kappa_ff * v + b.k_heading_ps * (alpha_ref - err_n - alpha)
         # Grip (C16): the rider never asks for a turn tighter than the tyres carry, and
         # keeps headroom below it for the roll loop's steering transients.
         v_safe = ca.fmax(v, 0.5)
@@ -439,6 +441,7 @@ class _Reference:
         self.s_m, self.power_w, self.v_mps, self.n_m = s_m, power_w, v_mps, n_m
         self.dn_ds = np.gradient(n_m, s_m) if len(s_m) > 1 else np.zeros(1)
         self.v_grip = np.full(len(s_m), np.inf)
+        self.kappa = np.zeros(len(s_m))
         if len(s_m) > 2:
             # Heading of the line = road heading + the line's angle to the road; its
             # change per metre travelled along the line is the line's curvature.
@@ -450,9 +453,10 @@ class _Reference:
             # mean curvature over ~`_LINE_SMOOTH_M` (the heading change across it).
             half = max(1, round(_LINE_SMOOTH_M / 2 / max(float(np.mean(np.diff(s_m))), 1e-3)))
             kernel = np.ones(2 * half + 1) / (2 * half + 1)
-            kappa = np.abs(np.convolve(np.pad(kappa, half, mode="edge"), kernel, "valid"))
+            self.kappa = np.convolve(np.pad(kappa, half, mode="edge"), kernel, "valid")
             # v^2 kappa <= grip_lateral mu_y g (C16 with a_x = 0).
-            self.v_grip = np.sqrt(grip_lateral * mu_y * GRAVITY_MPS2 / np.maximum(kappa, 1e-9))
+            self.v_grip = np.sqrt(grip_lateral * mu_y * GRAVITY_MPS2
+                                  / np.maximum(np.abs(self.kappa), 1e-9))
 
     @classmethod
     def of_plan(cls, course: Course, plan: Plan, grip_lateral: float, mu_y: float
@@ -466,8 +470,9 @@ class _Reference:
                    advice.horizon_speed_mps, advice.horizon_n_m, grip_lateral, mu_y)
 
     def at(self, s: float, v: float, behaviour: RiderBehaviour, decel_mps2: float
-           ) -> tuple[float, float, float, float]:
-        """Power one lag ahead, the brake speed, and n and dn/ds at `s`.
+           ) -> tuple[float, float, float, float, float]:
+        """Power one lag ahead, the brake speed, n and dn/ds at `s`, and the line's
+        curvature `steer_preview_s` ahead (the turn the rider steers into).
 
         The brake speed is the lower of the advised speed's minimum a moment ahead and
         the grip envelope: the speed from which the rider can still slow, at
@@ -484,7 +489,8 @@ class _Reference:
         v_env = float(np.sqrt(grip ** 2 + 2 * decel_mps2 * run).min())
         return (float(np.interp(s + b.power_lag_s * v, self.s_m, self.power_w)),
                 max(min(v_ref, v_env - b.brake_margin_mps), _V_BRAKE_MIN_MPS),
-                float(np.interp(s, self.s_m, self.n_m)), float(np.interp(s, self.s_m, self.dn_ds)))
+                float(np.interp(s, self.s_m, self.n_m)), float(np.interp(s, self.s_m, self.dn_ds)),
+                float(np.interp(s + b.steer_preview_s * v, self.s_m, self.kappa)))
 
 
 def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
@@ -572,7 +578,7 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
         if scenario is Scenario.HOT_START and s < hot_start_m:
             follow = plan_ref
         # The rider reads the target one lag ahead, so the delivered power is on time.
-        power, v_brake, n_ref, dn_ds = follow.at(s, float(x[4]), behaviour, decel)
+        power, v_brake, n_ref, dn_ds, kappa_ff = follow.at(s, float(x[4]), behaviour, decel)
         # The rider brakes for speeds (the advised speed ahead, the grip envelope), by
         # hand and at once in the controller; a negative advised power only means "stop
         # pedalling" (braking it blindly, through the leg's lag, double-brakes a rider
@@ -592,7 +598,6 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
             par = par.copy()
             par[i_wind] = -sc.headwind_mps * math.cos(road[2])
             par[i_wind + 1] = -sc.headwind_mps * math.sin(road[2])
-        kappa_ff = float(course.at("kappa_per_m", s + behaviour.steer_preview_s * x[4]))
         x_next, s_next, y_next = step(x, s, road, par, [n_ref, dn_ds, w_cmd, v_brake, kappa_ff],
                                       dt_s)
         x_next = np.asarray(x_next).ravel()

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from itt_planner.advice import Level
-from itt_planner.engine import EngineSettings, PacingEngine
+from itt_planner.engine import ON_PLAN, EngineSettings, PacingEngine
 from itt_planner.horizon import HorizonPlanner, HorizonSettings
 from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
 
@@ -23,8 +23,9 @@ from hairpin_fixtures import (  # noqa: F401  (course, plan: fixtures)
 #: A short horizon keeps the tests fast; a wall-time budget no loaded CI machine hits
 #: keeps the solver's path deterministic.
 CALM = HorizonSettings(horizon_m=400.0, n_intervals=50, max_wall_time_s=30.0)
-#: Engines in tests judge no overruns unless a test is about them (2 busy cores).
-PATIENT = EngineSettings(max_solve_time_s=30.0)
+#: Engines in tests judge no overruns unless a test is about them (2 busy cores), and
+#: replan every period even on the plan: these tests are about the horizon path.
+PATIENT = EngineSettings(max_solve_time_s=30.0, on_plan_band_j=0.0)
 
 
 def _planner(course, plan, settings: HorizonSettings = CALM) -> HorizonPlanner:
@@ -33,9 +34,10 @@ def _planner(course, plan, settings: HorizonSettings = CALM) -> HorizonPlanner:
 
 
 def _ride(engine: PacingEngine, course, plan, t_end: float, *, v_scale: float = 1.0,
-          start: float = 0.0) -> list:
-    """Perfect sensors riding the plan (time-stretched by `v_scale`), 1 Hz, with an
-    update every second; returns the advice."""
+          start: float = 0.0, extra_power_w: float = 0.0) -> list:
+    """Perfect sensors riding the plan (time-stretched by `v_scale`; the power meter
+    reading `extra_power_w` over the plan's), 1 Hz, with an update every second;
+    returns the advice."""
     out = []
     for k in range(int(start), int(t_end)):
         t = float(k)
@@ -44,7 +46,8 @@ def _ride(engine: PacingEngine, course, plan, t_end: float, *, v_scale: float = 
         lat, lon, alt = (float(a) for a in course.to_geodetic(*course.enu_at(s, 0.0)))
         engine.on_gps(GpsFix(t, lat, lon, alt))
         engine.on_speed(WheelSpeed(t, v))
-        engine.on_power(PowerReading(t, max(float(np.interp(s, plan.s_m, plan.power_w)), 0.0)))
+        engine.on_power(PowerReading(
+            t, max(float(np.interp(s, plan.s_m, plan.power_w)), 0.0) + extra_power_w))
         advice = engine.update(t)
         if advice is not None:
             out.append(advice)
@@ -83,9 +86,29 @@ def test_advice_contents(course, plan):
     assert a.w_prime_finish_j == pytest.approx(plan.w_prime_j[-1], abs=3000.0)
 
 
+def test_on_plan_the_advice_is_the_plan_until_w_prime_leaves_the_band(course, plan):
+    """Riding the plan, the advice is the plan itself (no solve); once the W' balance is
+    more than the band below the plan's, the horizon replans from the rider's state."""
+    engine = PacingEngine(course, RIDER, plan, settings=EngineSettings(max_solve_time_s=30.0),
+                          planner=_planner(course, plan))
+    advice = _ride(engine, course, plan, 10.0)
+    assert all(a.solver_status == ON_PLAN and not a.fallback for a in advice)
+    assert engine.counters.get("solves", 0) == 0
+    a = advice[-1]
+    np.testing.assert_allclose(a.horizon_power_w[1:], plan.at("power_w", a.horizon_s_m[1:]))
+    np.testing.assert_allclose(a.horizon_n_m, plan.at("n_m", a.horizon_s_m))
+    solver = {d.name: d for d in engine.diagnostics(10.0)}["itt_planner/solver"]
+    assert solver.level == Level.OK and "on the plan" in solver.message
+    # 600 W over the plan for 10 s: ~6 kJ of W' gone, beyond the 2 kJ band.
+    off = _ride(engine, course, plan, 20.0, start=10.0, extra_power_w=600.0)
+    assert off[-1].solver_status != ON_PLAN and off[-1].iterations > 0
+    assert engine.counters["solves"] >= 1
+
+
 def test_clocked_by_stamps_only(course, plan):
     engine = PacingEngine(course, RIDER, plan,
-                          settings=EngineSettings(replan_period_s=2.0, max_solve_time_s=30.0),
+                          settings=EngineSettings(replan_period_s=2.0, max_solve_time_s=30.0,
+                                                  on_plan_band_j=0.0),
                           planner=_planner(course, plan))
     assert engine.update(0.0) is None  # no state yet
     engine.on_speed(WheelSpeed(0.0, 5.0))
@@ -135,8 +158,9 @@ def test_fallback_keeps_last_good_advice_shifted(course, plan):
 
 
 def test_fallback_before_any_good_solve_uses_the_plan(course, plan):
-    engine = PacingEngine(course, RIDER, plan, planner=_planner(
-        course, plan, HorizonSettings(horizon_m=400.0, max_iter=0)))
+    engine = PacingEngine(course, RIDER, plan, settings=EngineSettings(on_plan_band_j=0.0),
+                          planner=_planner(course, plan,
+                                           HorizonSettings(horizon_m=400.0, max_iter=0)))
     a = _ride(engine, course, plan, 6.0)[-1]
     assert a.fallback
     np.testing.assert_allclose(a.horizon_speed_mps, plan.at("v_mps", a.horizon_s_m))
@@ -147,12 +171,13 @@ def test_fallback_before_any_good_solve_uses_the_plan(course, plan):
 def test_overrun_is_a_fallback_unless_deterministic(course, plan):
     planner = _planner(course, plan)
     live = PacingEngine(course, RIDER, plan, planner=planner,
-                        settings=EngineSettings(max_solve_time_s=0.0))
+                        settings=EngineSettings(max_solve_time_s=0.0, on_plan_band_j=0.0))
     advice = _ride(live, course, plan, 4.0)
     assert all(a.fallback and a.solver_status.startswith("overrun") for a in advice)
     assert live.counters["overruns"] == 4
     replay = PacingEngine(course, RIDER, plan, planner=_planner(course, plan),
-                          settings=EngineSettings(max_solve_time_s=0.0, deterministic=True))
+                          settings=EngineSettings(max_solve_time_s=0.0, deterministic=True,
+                                                  on_plan_band_j=0.0))
     advice = _ride(replay, course, plan, 4.0)
     assert not any(a.fallback for a in advice)
     assert all(a.solve_time_s == 0.0 for a in advice)
@@ -163,7 +188,8 @@ def test_deterministic_replay_is_identical(course, plan):
     def run():
         engine = PacingEngine(course, RIDER, plan,
                               settings=EngineSettings(deterministic=True,
-                                                      max_solve_time_s=0.0),
+                                                      max_solve_time_s=0.0,
+                                                      on_plan_band_j=0.0),
                               planner=_planner(course, plan))
         advice = _ride(engine, course, plan, 8.0, v_scale=0.97)
         return advice, engine.diagnostics(12.0)

@@ -87,12 +87,13 @@ def test_planning_conditions_use_the_riders_lateral_grip():
 
 def test_time_domain_model_reproduces_the_plan(course, plan):
     """Following the full-course plan in time (lag, noise, path-following controller),
-    the 3D model ends within 2.5 % of the OCP's time and stays near the planned line.
-    (Measured +1.6 to +1.8 % over seeds 1-4 with the plan solved for the grip the rider
-    uses: the rider lags the line in the 12 m hairpin and the S-bend, runs wide, leans
-    more than planned and C15 then cuts its pedalling there.)"""
+    the 3D model ends within 1 % of the OCP's time and stays near the planned line.
+    (Measured +0.36 to +0.61 % over seeds 1-4 with the plan solved for the grip the rider
+    uses, 0.3 m RMS off the planned line; +1.6 to +1.8 % and 2-5 m off in the hairpins
+    while the rider's steering fed forward the road's curvature instead of the line's.)"""
     res = simulate_ride(course, RIDER, plan, policy=Policy.OPEN_LOOP, seed=1)
-    assert res.finish_time_s == pytest.approx(plan.finish_time_s, rel=0.025)
+    assert res.finish_time_s == pytest.approx(plan.finish_time_s, rel=0.01)
+    assert np.sqrt(np.mean((res.n_m - plan.at("n_m", res.s_m)) ** 2)) < 0.5
     err = res.n_m - plan.at("n_m", res.s_m)
     assert np.sqrt(np.mean(err ** 2)) < 1.2
     # The speed trace follows the plan's, corners included.
@@ -129,29 +130,28 @@ def test_truth_respects_grip(course, plan, policy, scenario):
 
 def test_nominal_replanned_close_to_the_optimum(course, plan):
     """Belief = truth (the plan and the horizon are solved for the grip the rider uses).
-    Within 2 % of that optimum: the issue's 1 % is NOT met (measured +1.0 to +1.7 % over
-    seeds 1-4, and the blind plan +1.6 to +1.8 %): the time is lost where the simulated
-    rider cannot follow a line through the hairpin and the S-bend, which no replan gives
-    back (bench/RESULTS.md). For the same reason the replanned ride does not beat the
-    blind plan on every seed (-0.2 to +1.3 s over seeds 1-4): asserted is that it is no
-    more than 0.5 s behind it."""
+    Within the issue's 1 % of that optimum (measured +0.47 to +0.76 % over seeds 1-4):
+    the rider stays on the plan, so the advice is the plan (engine: event-triggered
+    replanning). It is not ahead of the blind plan (-0.73 to +0.07 s over seeds 1-4,
+    seed 2 left the W' band once): asserted is no more than 0.5 s behind it."""
     out = _compare(course, plan, "nominal")
     assert out["plan_for_rider_grip"]
     replanned = out["replanned"]
-    assert replanned["finish_time_s"] <= 1.02 * plan.finish_time_s
+    assert replanned["finish_time_s"] <= 1.01 * plan.finish_time_s
     assert out["margins"]["replanned_vs_open_loop_s"] > -0.5
     for policy in ("replanned", "open_loop", "even_cp"):
         assert out[policy]["w_prime_min_j"] >= 0.0
         assert out[policy]["max_friction_use"] <= 1.0 + 1e-3
     assert out["margins"]["replanned_vs_even_cp_s"] > 0
     lat = out["replan_latency_s"]
-    assert 0 < lat["median"] <= lat["p95"] <= lat["max"]
-    assert out["replans"] >= plan.finish_time_s / 2 - 2
+    assert 0 <= lat["median"] <= lat["p95"] <= lat["max"]
 
 
 def test_hot_start_replanned_beats_open_loop(course, plan):
     """The rider burns W' over the first third; the blind plan then runs dry and
-    finishes with W' it could not place, the replanned ride re-budgets it."""
+    finishes with W' it could not place, the replanned ride re-budgets it. Measured
+    over seeds 1-4: +0.35, -1.22, -0.29, -0.48 s: the replanned ride beats the blind
+    plan on seed 1 only (asserted here), so the issue's bar is NOT met (bench/RESULTS.md)."""
     out = _compare(course, plan, "hot-start")
     assert out["replanned"]["w_prime_min_j"] >= 0.0
     assert out["replanned"]["max_friction_use"] <= 1.0 + 1e-3
@@ -162,9 +162,9 @@ def test_hot_start_replanned_beats_open_loop(course, plan):
 def test_cp_overestimated_is_detected(course, plan):
     """True CP 5 % below the belief (418 W vs 440 W): the engine sees the rider fail to
     hold advice above CP, refits CP from the power history to within a few W of the
-    truth and replans with it. It does NOT beat the blind plan here (measured -0.8 to
-    +0.3 s over seeds): both riders run dry before anything reveals the lower CP;
-    bench/RESULTS.md."""
+    truth and replans with it. It does NOT beat the blind plan here (measured -1.30,
+    -0.96, -0.23, +0.07 s over seeds 1-4): both riders run dry before anything reveals
+    the lower CP; bench/RESULTS.md."""
     out = _compare(course, plan, "cp-overestimated")
     assert out["replanned"]["cp_in_use_w"] == pytest.approx(0.95 * RIDER.critical_power_w,
                                                             rel=0.02)
@@ -187,9 +187,10 @@ def test_headwind(course, plan):
 def test_verona_like_nominal(request):
     """The whole verona-like race in closed loop (1 km horizon, replan every 1 s), the
     plan solved for the grip the rider uses. Measured 2026-11-30 with the horizon's wall
-    cap raised to 30 s (no load-dependent fallbacks): replanned 1290.8 / 1289.3 s (seeds
-    0 / 1) vs that optimum 1261.9 s (+2.3 / +2.2 %; the blind plan +1.0 / +0.9 %), so the
-    issue's 1 % bar is NOT met; asserted is what holds (W' >= 0, within 3 %, far ahead
+    cap raised to 30 s (no load-dependent fallbacks): replanned 1273.9 / 1272.3 s (seeds
+    0 / 1) vs that optimum 1261.9 s (+0.95 / +0.82 %; the blind plan +0.35 / +0.29 %):
+    within the issue's 1 %, but by a thin margin and with the default 0.8 s wall cap
+    load-dependent, so asserted is what holds with room (W' >= 0, within 3 %, far ahead
     of even pacing). See bench/RESULTS.md."""
     from itt_planner.course_loader import load_course
 
