@@ -128,6 +128,8 @@ class NodeParams:
         plan_cache: directory of cached full-course plans (solved there when missing).
         horizon_m: receding-horizon length.
         replan_period_s: stamp time between two advices.
+        on_plan_band_j: W' deviation from the plan within which the advice is the plan
+            itself (no replan); 0.0 replans every period (`EngineSettings`).
         tick_period_s: period of the replan timer (node clock); the engine decides
             whether a replan is due.
         diagnostics_period_s: stamp time between two `/diagnostics` messages.
@@ -144,6 +146,7 @@ class NodeParams:
     plan_cache: str = '.itt_cache'
     horizon_m: float = 1000.0
     replan_period_s: float = 1.0
+    on_plan_band_j: float = 2000.0
     tick_period_s: float = 0.1
     diagnostics_period_s: float = 1.0
     rerun_sink: str = ''
@@ -176,7 +179,7 @@ def build_engine(params: NodeParams) -> Any:
         plan = load_or_solve(course, rider, conditions, OcpSettings(), '3d',
                              cache_dir=Path(params.plan_cache))
     settings = EngineSettings(replan_period_s=params.replan_period_s,
-                              horizon_m=params.horizon_m)
+                              horizon_m=params.horizon_m, on_plan_band_j=params.on_plan_band_j)
     return PacingEngine(course, rider, plan, conditions=conditions, settings=settings)
 
 
