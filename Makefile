@@ -21,7 +21,7 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	@mkdir -p $(OUT)
-	$(BIN)/itt-planner replay bags/typical_verona-like.mcap --course verona-like --rider typical \
+	$(BIN)/itt-planner replay bags/typical_verona-like_cp-overestimated.mcap --course verona-like --rider typical \
 		--out $(OUT)/advice.mcap --rrd $(OUT)/review.rrd --speed max
 
 test: $(STAMP)

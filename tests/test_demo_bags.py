@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
+from itt_planner.engine import ON_PLAN
 from itt_planner.ridelog import METADATA_NAME, read_ride_log
 from itt_planner.replay import replay_ride
 
@@ -16,6 +17,7 @@ DEMO = {  # bag -> (course, rider)
     "specialist_verona-like.mcap": ("verona-like", "specialist"),
     "climber_verona-like.mcap": ("verona-like", "climber"),
     "typical_rovereto-like.mcap": ("rovereto-like", "typical"),
+    "typical_verona-like_cp-overestimated.mcap": ("verona-like", "typical"),
 }
 
 
@@ -56,14 +58,22 @@ def _assert_advice_covers_ride(out: Path, bag: Path, period_s: float) -> None:
     assert max(b - a for a, b in zip(advice, advice[1:], strict=False)) <= 2 * period_s
 
 
-def test_typical_demo_bag_replays_with_advice_for_the_whole_ride(tmp_path: Path) -> None:
-    """The `make demo` bag, replanned every 10 s of ride time to keep the suite quick."""
-    bag = BAGS / "typical_verona-like.mcap"
+def test_make_demo_bag_replays_with_advice_for_the_whole_ride(tmp_path: Path) -> None:
+    """The `make demo` bag (the rider's CP 5 % below the planner's belief), replanned
+    every 10 s of ride time to keep the suite quick: the plan is advised while the rider
+    keeps to it, then the engine sees the rider run dry, refits CP and replans."""
+    bag = BAGS / "typical_verona-like_cp-overestimated.mcap"
     result = replay_ride(bag, "verona-like", "typical", output=tmp_path / "advice.mcap",
                          replan_period_s=10.0, cache_dir=tmp_path / "cache")
     assert not result.errors
     assert result.advice_out >= result.ride_duration_s / 10 - 2
     _assert_advice_covers_ride(tmp_path / "advice.mcap", bag, 10.0)
+    statuses = [a.solver_status for name, _, a in read_ride_log(tmp_path / "advice.mcap")
+                if name == "/itt/advice"]
+    assert statuses[0] == ON_PLAN
+    first_solve = next(i for i, st in enumerate(statuses) if st != ON_PLAN)
+    assert first_solve > len(statuses) / 4  # on the plan until the rider runs dry
+    assert sum(st.startswith("Solve") for st in statuses[first_solve:]) > len(statuses) / 4
 
 
 @pytest.mark.slow

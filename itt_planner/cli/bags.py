@@ -15,6 +15,9 @@ def make_bag_cli(
     rider: str = typer.Option("typical", "--rider", help="Rider preset or YAML file."),
     output: Path = typer.Option(..., "--output", "-o", help="The .mcap ride log to write."),
     seed: int = typer.Option(0, "--seed", help="Seed of the rider's and sensors' noise."),
+    scenario: str = typer.Option("nominal", "--scenario",
+                                 help="How the truth differs from the plan: nominal, "
+                                      "cp-overestimated, headwind, hot-start."),
     cache_dir: Path = typer.Option(Path(".itt_cache"), "--cache-dir",
                                    help="Where full-course plans are cached."),
     as_json: bool = JSON_OPTION,
@@ -30,7 +33,7 @@ def make_bag_cli(
     with errors_to_exit(as_json):
         built, who = load_course(course), load_rider(rider)
         plan = load_or_solve(built, who, Conditions(), OcpSettings(), "3d", cache_dir=cache_dir)
-        summary = record_simulated_ride(built, who, plan, output, seed=seed)
+        summary = record_simulated_ride(built, who, plan, output, seed=seed, scenario=scenario)
         emit(summary.as_dict(), as_json,
              lambda r: f"wrote {r['output']}: {r['messages']} messages, "
                        f"{r['ride_duration_s'] / 60:.1f} min of SIMULATED ride, "
