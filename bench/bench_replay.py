@@ -1,11 +1,14 @@
 """Benchmark of the embedded replay: a ~24-minute ride with 1 Hz replanning.
 
 Runs `itt_planner.replay.replay_ride`, exactly what `itt-planner replay --speed max` runs
-(deterministic planner: IPOPT's iteration cap is the budget, no wall-time cap), on the demo
-bag `bags/typical_verona-like.mcap` (a simulated 22-minute ride: GPS 1 Hz with 3 m noise,
-speed and power noise). Prints medians of >= 3 runs of:
+(deterministic planner: IPOPT's iteration cap is the budget, no wall-time cap), on the
+`make demo` bag `bags/typical_verona-like_cp-overestimated.mcap` (a simulated 23-minute
+ride whose real CP is 5 % below the belief: GPS 1 Hz with 3 m noise, speed and power
+noise). Prints medians of >= 3 runs of:
 
-- full:       replay with the engine replanning every 1 s of stamp time, output MCAP written;
+- full:       replay with the engine advising every 1 s of stamp time (the plan while
+              the rider is on it, then a horizon solve every second after the CP refit),
+              output MCAP written;
 - estimate:   the same engine and log, replanning disabled (one advice, then estimation
               only): the cost of everything but the horizon solves;
 - decode:     reading and decoding the log only (the floor of any replay).
@@ -36,7 +39,7 @@ from itt_planner.rider import PRESETS  # noqa: E402
 
 COURSE = "verona-like"
 RIDER = "typical"
-DEMO_BAG = ROOT / "bags" / "typical_verona-like.mcap"
+DEMO_BAG = ROOT / "bags" / "typical_verona-like_cp-overestimated.mcap"
 
 
 def median_of(runs: int, fn) -> tuple[float, list[float], object]:  # noqa: ANN001
