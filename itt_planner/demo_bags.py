@@ -3,8 +3,8 @@
 The rider follows the full-course plan with the simulator's lag and noise (the
 `open_loop` policy of `simulate`: no pacing engine in the loop, so the log is a plain
 recording of a ride), on a truth that may differ from the plan's belief (a `simulate`
-scenario, e.g. a critical power 5 % below the plan's), and the simulated sensors give GPS at 1 Hz with 3 m of correlated
-noise, wheel speed and power with their own noise. Every log says in its metadata that
+scenario, e.g. a critical power 5 % below the plan's), and the simulated sensors give
+GPS at 1 Hz with 3 m of correlated noise, wheel speed and power with their own noise. Every log says in its metadata that
 it is SIMULATED and how to remake it.
 """
 

@@ -18,8 +18,9 @@ Event-triggered replanning: while the rider's W' balance stays within
 advice IS the full-course plan from the rider's `s` (status "on_plan"): the plan is
 the optimum for what the planner believes, and re-optimising it every second from a
 noisy state with the horizon's reduced (steady-lean) model only added error - with a
-virtual rider that follows the line, the replanned ride finished 1.3-2.4 % behind the
-optimum where the plan followed blindly finished 0.4-0.7 % behind (bench/RESULTS.md).
+virtual rider that follows the line, the ride replanned every second finished 0.7-1.9 %
+behind the optimum where the plan followed blindly finished 0.3-0.6 % behind
+(bench/RESULTS.md).
 Once the balance leaves the band (a hot start, a CP the rider does not have) the
 horizon replans every period until the balance is back within half the band.
 

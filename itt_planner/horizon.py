@@ -502,7 +502,7 @@ class HorizonPlanner:
         `grip_tol` of their limit or of what the measured initial state already uses.
         The soft terminal W' target is not checked: it is a price, not a safety limit.
         """
-        st, tr, lay = self.settings, self._tr, self._tr.layout
+        st, lay = self.settings, self._tr.layout
         if np.any(w < lbw - st.feasible_tol) or np.any(w > ubw + st.feasible_tol):
             return False
         x, _, slacks = lay.split(w)

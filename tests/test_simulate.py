@@ -25,7 +25,7 @@ from itt_planner.ocp import OcpSettings
 from itt_planner.plan_cache import load_or_solve
 from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.simulate import (
-    Policy, RiderBehaviour, SensorSettings, Sensors, compare_policies, hairpin_course,
+    Policy, RiderBehaviour, SensorSettings, Sensors, compare_policies,
     planning_conditions, simulate_ride,
 )
 
