@@ -4,8 +4,8 @@ The rider follows the full-course plan with the simulator's lag and noise (the
 `open_loop` policy of `simulate`: no pacing engine in the loop, so the log is a plain
 recording of a ride), on a truth that may differ from the plan's belief (a `simulate`
 scenario, e.g. a critical power 5 % below the plan's), and the simulated sensors give
-GPS at 1 Hz with 3 m of correlated noise, wheel speed and power with their own noise. Every log says in its metadata that
-it is SIMULATED and how to remake it.
+GPS at 1 Hz with 3 m of correlated noise, wheel speed and power with their own noise.
+Every log says in its metadata that it is SIMULATED and how to remake it.
 """
 
 from __future__ import annotations
@@ -58,12 +58,12 @@ def record_simulated_ride(course: Course, rider: Rider, plan: Plan, output: str 
     """
     result = simulate_ride(course, rider, plan, policy=Policy.OPEN_LOOP, seed=seed,
                            scenario=scenario, conditions=conditions, t0_s=DEMO_START_POSIX_S)
-    scenario = result.scenario.value
+    name = result.scenario.value
     if math.isnan(result.finish_time_s):  # ran out of time before the line
         msg = f"simulated {rider.name} did not finish {course.name}; no log written"
         raise IttError(msg)
     remake = (f"itt-planner make-bag --course {course.name} --rider {rider.name} "
-              f"--seed {seed}{'' if scenario == 'nominal' else f' --scenario {scenario}'} "
+              f"--seed {seed}{'' if name == 'nominal' else f' --scenario {name}'} "
               f"-o {Path(output).name}")
     metadata = RideMetadata(source=f"SIMULATED ride ({remake})", sha256=course.source_sha256,
                             device="itt-planner simulator (not a real device)", rider=rider.name)
@@ -72,7 +72,7 @@ def record_simulated_ride(course: Course, rider: Rider, plan: Plan, output: str 
             writer.write_sample(sample)
     stamps = [s.stamp_s for s in result.samples]
     return BagSummary(
-        output=str(output), course=course.name, rider=rider.name, scenario=scenario, seed=seed,
+        output=str(output), course=course.name, rider=rider.name, scenario=name, seed=seed,
         messages=len(result.samples), ride_duration_s=round(max(stamps) - min(stamps), 3),
         finish_time_s=round(float(result.finish_time_s), 3),
         size_bytes=Path(output).stat().st_size,

@@ -228,7 +228,7 @@ class PacingEngine:
             refit = self._check_shortfall(stamp_s, state)
             if refit is not None:
                 state, rider = refit
-            on_plan = (self._follows_plan(state, refitted=refit is not None)
+            on_plan = (self._follows_plan(state)
                        and self.course.length_m - state.s_m > _FINISHED_M)
             if on_plan:
                 self._consecutive_failures = 0
@@ -243,12 +243,13 @@ class PacingEngine:
                 self._replace_planner(rider)  # the inputs stay unlocked while solving
             return self._replan(stamp_s, state)
 
-    def _follows_plan(self, state: RiderState, *, refitted: bool) -> bool:
+    def _follows_plan(self, state: RiderState) -> bool:
         """Whether the advice is the plan (module docstring): W' within the band (back
         within half of it after leaving it), never after a CP refit (the plan's W' is
-        then for a CP the rider does not have). Called with `self._lock` held."""
+        then for a CP the rider does not have; `_check_shortfall` records every refit).
+        Called with `self._lock` held."""
         band = self.settings.on_plan_band_j
-        if refitted or self._refits or band <= 0:
+        if self._refits or band <= 0:
             self._on_plan = False
             return False
         dev = abs(state.w_prime_j - float(self.plan.at("w_prime_j", state.s_m)))
