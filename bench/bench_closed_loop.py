@@ -5,9 +5,10 @@ every 1 s of ride time even on the plan, 1 Hz sensors) through the `PacingEngine
 replan's wall time (warm: the planner's shifted warm start, as live). Then every 10th
 state of that race is re-solved cold (`HorizonPlanner.reset()` before each solve, so the
 start is the full-course plan, not the previous solution). Baseline measured in the same
-run: re-solving the whole REMAINING course with the full-course OCP (`ocp.solve_plan` on
-the course cut at the rider's position, starting at the rider's speed with W' full) at
-a few points: too slow to do at every replan, which is the point. Every plan and
+run: re-solving the whole REMAINING course with the full-course OCP from the rider's
+state at a few points of the race (`ocp.solve_plan` with `start=`, warm from the plan, as
+the engine's `course_replan` does when the rider leaves the plan): too slow to do at
+every replan, which is the point. Every plan and
 horizon is solved for `simulate.planning_conditions` (the lateral grip the virtual rider
 uses), so the race's planner believes the truth.
 
@@ -20,7 +21,6 @@ over their sample points.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import logging
 import os
@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from itt_planner.conditions import Conditions
-from itt_planner.course import Course
 from itt_planner.course_loader import load_course
+from itt_planner.course_replan import start_from
 from itt_planner.engine import EngineSettings
 from itt_planner.horizon import HorizonPlanner, HorizonSettings
 from itt_planner.ocp import OcpSettings, solve_plan
@@ -46,17 +46,6 @@ def _stats(x: list[float]) -> dict[str, float]:
     a = np.asarray(x)
     return {"n": len(a), "median": float(np.median(a)), "p95": float(np.percentile(a, 95)),
             "max": float(a.max())}
-
-
-def _remaining(course: Course, s_m: float) -> Course:
-    """The course from `s_m` to the finish, as a course of its own."""
-    i = int(np.searchsorted(course.s_m, s_m))
-    sl = slice(i, None)
-    return Course.from_centerline(
-        f"{course.name}@{s_m:.0f}", course.x_m[sl], course.y_m[sl], course.z_m[sl],
-        origin=course.origin, ds_m=course.ds_m, theta_rad=course.theta_rad[sl],
-        kappa_per_m=course.kappa_per_m[sl], width_left_m=course.width_left_m[sl],
-        width_right_m=course.width_right_m[sl], synthetic=course.synthetic)
 
 
 def main() -> None:
@@ -110,14 +99,17 @@ def main() -> None:
     points = (0.5,) if args.quick else (0.25, 0.5, 0.75)
     full = []
     for frac in points:
-        s = frac * course.length_m
-        rest = _remaining(course, s)
-        settings = dataclasses.replace(OcpSettings(), start_speed_mps=float(plan.at("v_mps", s)))
+        advice = res.advice[int(frac * len(res.advice))]
+        s = advice.state.s_m
+        start = start_from(plan, s, dict(zip(planner.state_names,
+                                             planner.initial_state(advice.state, s),
+                                             strict=True)))
         t0 = time.perf_counter()
-        sol = solve_plan(rest, RIDER, belief, settings=settings)
+        sol = solve_plan(course, RIDER, belief, guess=plan, start=start)
         full.append(time.perf_counter() - t0)
-        print(f"  remaining course from {s / 1000:.1f} km ({rest.length_m / 1000:.1f} km): "
-              f"{full[-1]:.1f} s ({sol.solver_status})", flush=True)
+        print(f"  remaining course from {s / 1000:.1f} km "
+              f"({(course.length_m - s) / 1000:.1f} km): {full[-1]:.1f} s "
+              f"({sol.solver_status}, {sol.iterations} iterations)", flush=True)
     base = float(np.median(full))
     results["remaining_course_resolve_s"] = {"points": list(points), "times_s": full,
                                              "median": base}

@@ -14,15 +14,19 @@ byte-identical advice and diagnostics. The measured times are still collected in
 `PacingEngine.solve_times_s` (never published) for benchmarks.
 
 Event-triggered replanning: while the rider's W' balance stays within
-`on_plan_band_j` of the plan's at the same `s` (and CP has not been refitted), the
-advice IS the full-course plan from the rider's `s` (status "on_plan"): the plan is
+`on_plan_band_j` of the plan's at the same `s` (and the plan was solved for the CP in
+use), the advice IS the plan from the rider's `s` (status "on_plan"): the plan is
 the optimum for what the planner believes, and re-optimising it every second from a
 noisy state with the horizon's reduced (steady-lean) model only added error - with a
 virtual rider that follows the line, the ride replanned every second finished 0.7-1.9 %
 behind the optimum where the plan followed blindly finished 0.3-0.6 % behind
 (bench/RESULTS.md).
-Once the balance leaves the band (a hot start, a CP the rider does not have) the
-horizon replans every period until the balance is back within half the band.
+Once the balance leaves the band (a hot start), or CP is refitted (a CP the rider
+does not have), the horizon replans every period until the balance is back within half
+the band of the plan in force, and the rest of the course is re-solved from the
+rider's state with the full-course OCP in the background (`course_replan`, at most
+every `course_replan.period_s`); that new plan becomes the plan in force, advised as
+such while the rider keeps to it and the horizon's terminal treatment otherwise.
 
 A failed, raising or overrunning solve never reaches the rider: the last good advice,
 shifted to the current `s`, stays in force with `fallback=True` (before any good solve,
@@ -31,7 +35,9 @@ the full-course plan over the horizon serves), and a diagnostic says so.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
+import math
 import threading
 import time
 from collections import Counter, deque
@@ -43,6 +49,7 @@ import numpy as np
 from itt_planner.advice import Advice, Diagnostic, Level
 from itt_planner.conditions import Conditions
 from itt_planner.course import Course
+from itt_planner.course_replan import CourseReplanner, CourseReplanSettings, start_from
 from itt_planner.estimate import EstimatorSettings, StateEstimator
 from itt_planner.plan import Plan
 from itt_planner.rider import Rider
@@ -56,6 +63,8 @@ log = logging.getLogger(__name__)
 
 #: Solver status of advice that is the full-course plan (the rider is on it).
 ON_PLAN = "on_plan"
+#: Relative CP difference within which a plan counts as solved for the CP in use.
+_CP_TOL = 0.01
 #: Closer than this to the finish there is nothing left to plan.
 _FINISHED_M = 5.0
 
@@ -81,10 +90,20 @@ class EngineSettings:
         shortfall_above_cp: ... and fires when the mean target is this fraction above
             the CP in use while the mean measured power stays below that CP ...
         shortfall_min_w_prime: ... and the balance still shows more than this fraction
-            of W' (otherwise the balance already agrees with an exhausted rider).
+            of W' (otherwise the balance already agrees with an exhausted rider) ...
+        shortfall_below_cp: ... and the measured power is within this fraction below
+            that CP: an exhausted rider holds what it still can, its true CP. A rider far
+            below both is not following the advice (a hot start that ignores it fired
+            the detector at 0.84 CP and refitted a right CP 2.5 % too low); a CP
+            overestimated by more than this is not detected.
         on_plan_band_j: W' deviation from the plan within which the advice is the plan
             (module docstring; 0 replans always). 2 kJ: about three times the balance's
             error against the truth in the closed-loop tests (0.1-0.7 kJ).
+        course_replan: when the rest of the course is re-solved off the plan
+            (`course_replan`; period 0: never).
+        line_gate_m: the horizon plans from the advised line unless the lateral
+            estimate is further off it than this (`_on_line`; 0: from the estimate).
+            5 m: twice the bike GPS's lateral error (3 m per axis, partly averaged).
     """
 
     replan_period_s: float = 1.0
@@ -97,7 +116,10 @@ class EngineSettings:
     shortfall_window_s: float = 20.0
     shortfall_above_cp: float = 0.05
     shortfall_min_w_prime: float = 0.05
+    shortfall_below_cp: float = 0.10
     on_plan_band_j: float = 2000.0
+    course_replan: CourseReplanSettings = field(default_factory=CourseReplanSettings)
+    line_gate_m: float = 5.0
 
 
 @dataclass(frozen=True)
@@ -159,6 +181,12 @@ class PacingEngine:
         self._following: deque[tuple[float, float, float]] = deque()
         self._refits: list[tuple[float, float, float]] = []  # (stamp, cp before, after)
         self._on_plan = settings.on_plan_band_j > 0
+        #: The CP the plan in force was solved for (a refit makes it not the rider's).
+        self._plan_cp_w = rider.critical_power_w
+        #: The horizon planner still holds an older rider or plan (rebuilt before a solve).
+        self._planner_stale = False
+        self._course_replanner = CourseReplanner(course, planner.conditions,
+                                                 settings.course_replan, settings.deterministic)
 
     # ---- inputs (any thread; never raise) -----------------------------------------------------
     def on_gps(self, fix: GpsFix) -> None:
@@ -227,9 +255,15 @@ class PacingEngine:
             self._last_advice_stamp = stamp_s
             refit = self._check_shortfall(stamp_s, state)
             if refit is not None:
-                state, rider = refit
+                state = refit
+                self._planner_stale = True
+            self._adopt_course_plan(stamp_s)
             on_plan = (self._follows_plan(state)
                        and self.course.length_m - state.s_m > _FINISHED_M)
+            # Left the plan: W' out of the band (when there is one), or a plan for a CP
+            # the rider does not have. Then the rest of the course is re-solved too.
+            left_plan = not on_plan and (self.settings.on_plan_band_j > 0
+                                         or not self._plan_fits_cp())
             if on_plan:
                 self._consecutive_failures = 0
                 good = self._from_plan(state)
@@ -239,48 +273,103 @@ class PacingEngine:
         if on_plan:
             return self._advice(stamp_s, state, good, fallback=False)
         with self._solve_lock:
-            if refit is not None:
-                self._replace_planner(rider)  # the inputs stay unlocked while solving
-            return self._replan(stamp_s, state)
+            if self._planner_stale:  # the inputs stay unlocked while it is rebuilt
+                self._replace_planner()
+            start = self._on_line(state)
+            if left_plan:
+                self._request_course_plan(stamp_s, start)
+            return self._replan(stamp_s, state, start)
 
     def _follows_plan(self, state: RiderState) -> bool:
         """Whether the advice is the plan (module docstring): W' within the band (back
-        within half of it after leaving it), never after a CP refit (the plan's W' is
-        then for a CP the rider does not have; `_check_shortfall` records every refit).
-        Called with `self._lock` held."""
+        within half of it after leaving it), and the plan in force solved for the CP in
+        use (after a refit, only a plan re-solved with it). Called with `self._lock`
+        held."""
         band = self.settings.on_plan_band_j
-        if self._refits or band <= 0:
+        if band <= 0 or not self._plan_fits_cp():
             self._on_plan = False
             return False
         dev = abs(state.w_prime_j - float(self.plan.at("w_prime_j", state.s_m)))
         self._on_plan = dev < (band if self._on_plan else 0.5 * band)
         return self._on_plan
 
-    def _replace_planner(self, rider: Rider) -> None:
-        """Rebuild the horizon planner for the refitted rider (a new HorizonPlanner costs
-        tens of ms: fine once per refit); the full-course plan stays the terminal
-        treatment. Called with `self._solve_lock` held."""
+    def _plan_fits_cp(self) -> bool:
+        """Whether the plan in force was solved for the CP in use, within `_CP_TOL` (a
+        refit that moved CP by 0.1 W, seen after hot starts, changes no plan).
+        Called with `self._lock` held."""
+        cp = self._estimator.rider.critical_power_w
+        return abs(self._plan_cp_w - cp) <= _CP_TOL * cp
+
+    def _replace_planner(self) -> None:
+        """Rebuild the horizon planner for the rider in use (CP refitted) and the plan in
+        force (re-solved); a new HorizonPlanner costs tens of ms: fine once per event.
+        Called with `self._solve_lock` held."""
         from itt_planner.horizon import HorizonPlanner
 
+        with self._lock:
+            rider, plan = self._estimator.rider, self.plan
+            self._planner_stale = False
         old = self.planner
-        self.planner = HorizonPlanner(self.course, rider, self.plan, conditions=old.conditions,
+        self.planner = HorizonPlanner(self.course, rider, plan, conditions=old.conditions,
                                       settings=old.settings)
 
-    def _check_shortfall(self, stamp_s: float, state: RiderState
-                         ) -> tuple[RiderState, Rider] | None:
+    def _request_course_plan(self, stamp_s: float, state: RiderState) -> None:
+        """Ask for the rest of the course re-solved from `state` (`course_replan`; the
+        replanner rate-limits). Called with `self._solve_lock` held, the planner current."""
+        s0 = float(np.clip(state.s_m, 0.0, self.course.length_m - 1.0))
+        x0 = self.planner.initial_state(state, s0)
+        names = self.planner.state_names
+        start = start_from(self.plan, s0, {k: float(v) for k, v in zip(names, x0, strict=True)})
+        if self._course_replanner.request(stamp_s, self.planner.rider, self.plan, start):
+            self._stats["course_replans_asked"] += 1
+            log.info("engine: off the plan at s=%.0f m (W' %.0f J, CP %.0f W): re-solving the "
+                     "rest of the course", s0, state.w_prime_j, self.planner.rider.critical_power_w)
+
+    def _adopt_course_plan(self, stamp_s: float) -> None:
+        """Make a finished re-solve of the rest of the course the plan in force (if it
+        converged). Called with `self._lock` held."""
+        try:
+            plan = self._course_replanner.take(stamp_s)
+        except Exception:  # a failed solve never takes the engine down
+            log.exception("engine: re-solving the rest of the course raised")
+            self._stats["course_replan_failures"] += 1
+            return
+        if plan is None:
+            return
+        if not plan.meta.get("success", False):
+            log.warning("engine: re-solve of the course from s=%.0f m ended %s: the plan "
+                        "in force stays", plan.s_m[0], plan.solver_status)
+            self._stats["course_replan_failures"] += 1
+            return
+        self.plan = plan
+        self._plan_cp_w = float(plan.meta["rider"]["critical_power_w"])
+        self._planner_stale = True
+        self._on_plan = True  # judged against the full band: the rider started on it
+        self._stats["course_replans"] += 1
+        log.info("engine: new plan from s=%.0f m adopted (%s, %d iterations, %.1f s)",
+                 plan.s_m[0], plan.solver_status, plan.iterations, plan.solve_time_s)
+
+    def close(self) -> None:
+        """Stop the background re-solve (a solve still running is abandoned)."""
+        self._course_replanner.close()
+
+    def _check_shortfall(self, stamp_s: float, state: RiderState) -> RiderState | None:
         """Detect a rider out of W' that the balance says is not, and refit CP.
 
         The balance integrates measured power against the CP the planner believes; if
         the true CP is lower, it shows W' the rider no longer has. The signature: over
         `shortfall_window_s`, advice clearly above CP (`shortfall_above_cp`) while the
-        measured power stays below CP - a rider with W' left follows the target within
-        its lag and noise (0.8 s, a few %), far above CP. Then the estimator refits CP so
-        that the balance of the whole power history is empty now
-        (`StateEstimator.refit_critical_power`) and the replan starts from W' = 0.
+        measured power stays just below CP (`shortfall_below_cp`) - a rider with W' left
+        follows the target within its lag and noise (0.8 s, a few %), far above CP.
+        Then the estimator refits CP so that the balance of the whole power history is
+        empty now (`StateEstimator.refit_critical_power`) and the replan starts from
+        W' = 0.
         The planner is then rebuilt with the refitted CP (`_replace_planner`), so the
-        horizon no longer plans power above what the rider can sustain.
-        Called with `self._lock` held. Returns (the state to plan from, the refitted
-        rider) after a refit, else None.
+        horizon no longer plans power above what the rider can sustain, and the plan,
+        solved for a CP the rider does not have, is no longer followed (`_follows_plan`)
+        until the rest of the course is re-solved with the refitted CP.
+        Called with `self._lock` held. Returns the state to plan from after a refit,
+        else None.
         """
         st = self.settings
         good = self._last_good
@@ -296,7 +385,8 @@ class PacingEngine:
         cp = self._estimator.rider.critical_power_w
         mean_target = float(np.mean([w[1] for w in window]))
         mean_power = float(np.mean([w[2] for w in window]))
-        if (mean_target < cp * (1 + st.shortfall_above_cp) or mean_power >= cp
+        if (mean_target < cp * (1 + st.shortfall_above_cp)
+                or not cp * (1 - st.shortfall_below_cp) <= mean_power < cp
                 or state.w_prime_j < st.shortfall_min_w_prime * self.rider.w_prime_j):
             return None
         new_cp = self._estimator.refit_critical_power(0.0)
@@ -306,14 +396,16 @@ class PacingEngine:
         log.warning("engine: rider held %.0f W against %.0f W advised (CP %.0f W) for %.0f s "
                     "with W' %.0f J left: out of W'; CP refitted to %.0f W", mean_power,
                     mean_target, cp, st.shortfall_window_s, state.w_prime_j, new_cp)
-        return self._estimator.state(stamp_s) or state, self._estimator.rider
+        return self._estimator.state(stamp_s) or state
 
-    def _replan(self, stamp_s: float, state: RiderState) -> Advice:
+    def _replan(self, stamp_s: float, state: RiderState, start: RiderState) -> Advice:
+        """Solve the horizon from `start` (`_on_line(state)`); the advice carries the
+        estimate `state`."""
         if self.course.length_m - state.s_m <= _FINISHED_M:
             return self._finished(stamp_s, state)
         t0 = time.perf_counter()
         try:
-            sol: HorizonSolution | None = self.planner.solve(state)
+            sol: HorizonSolution | None = self.planner.solve(start)
             error = ""
         except Exception as err:  # the planner must never take the engine down
             log.exception("engine: horizon solve raised at s=%.0f m", state.s_m)
@@ -350,6 +442,33 @@ class PacingEngine:
         if good is None or good.s_m[-1] <= state.s_m + 1.0:
             good = self._from_plan(state)
         return self._advice(stamp_s, state, good, fallback=True)
+
+    def _on_line(self, state: RiderState) -> RiderState:
+        """The state the horizon plans from: on the advised line (its offset and
+        heading) unless the lateral estimate is more than `line_gate_m` off it.
+
+        Why: the rider steers along the advised line to within a few decimetres (the
+        virtual rider 0.3 m RMS), while a bike GPS places it to 2-3 m across the road.
+        Planning from the estimated offset drew every new line from a noisy point, which
+        the rider then followed: in the closed loop the horizon-led stretches ran 1-2.5 m
+        RMS off the plan's line and lost up to 7 s per km on the technical descent of
+        verona-like (bench/RESULTS.md). A rider really off the line (more than the gate)
+        is planned from where the GPS puts it.
+        """
+        gate = self.settings.line_gate_m
+        with self._lock:
+            good = self._last_good
+        if good is None or not good.s_m[0] <= state.s_m <= good.s_m[-1] or len(good.s_m) < 3:
+            s_line, n_line = self.plan.s_m, self.plan.n_m
+        else:
+            s_line, n_line = good.s_m, good.n_m
+        n = float(np.interp(state.s_m, s_line, n_line))
+        if gate <= 0 or not abs(state.n_m - n) <= gate:
+            return state
+        dn_ds = float(np.interp(state.s_m, s_line, np.gradient(n_line, s_line)))
+        one_nk = 1.0 - n * float(self.course.at("kappa_per_m", state.s_m))
+        heading = float(self.course.at("theta_rad", state.s_m)) + math.atan2(dn_ds, one_nk)
+        return dataclasses.replace(state, n_m=n, heading_rad=heading)
 
     def _from_plan(self, state: RiderState) -> _Good:
         """The full-course plan over the horizon: the fallback before any good solve."""
@@ -441,7 +560,8 @@ class PacingEngine:
         values = {"status": self._last_status, "iterations": str(self._last_iterations),
                   "consecutive_failures": str(failures),
                   **{k: str(stats.get(k, 0)) for k in
-                     ("solves", "failures", "overruns", "exceptions", "fallbacks")}}
+                     ("solves", "failures", "overruns", "exceptions", "fallbacks",
+                      "course_replans_asked", "course_replans", "course_replan_failures")}}
         if not st.deterministic:
             values["solve_time_s"] = f"{self._last_solve_time:.4f}"
         out.append(Diagnostic(stamp_s, "itt_planner/solver", level, msg, values))

@@ -262,6 +262,11 @@ class HorizonPlanner:
         self._previous_mult: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._failures = 0
 
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        """Names of the rows of `initial_state` (the horizon model's states)."""
+        return self._model.states
+
     # ---- window ---------------------------------------------------------------------------
     def window(self, s_m: float) -> np.ndarray:
         """The fixed-count node positions of the window starting at `s_m`.

@@ -23,6 +23,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from functools import lru_cache
 
@@ -113,6 +114,22 @@ class OcpSettings:
     max_cpu_time_s: float = 120.0
     tol: float = 1e-6
     jit: bool = True
+
+
+@dataclass(frozen=True)
+class Start:
+    """A solve from mid-course: the rest of the course from `s_m`, from a rider's state.
+
+    Attributes:
+        s_m: where the solve starts (the plan's `s_m[0]`; its `t_s` counts from there).
+        state: model state name (`STATES_3D`) -> value at `s_m`; a state not given
+            keeps its launch value (model.md section 5), a state the model does not
+            have is ignored. Values outside the simple bounds (a rider measured off the
+            road) are clipped into them.
+    """
+
+    s_m: float
+    state: Mapping[str, float]
 
 
 def substeps_for(h_max_m: float) -> int:
@@ -218,9 +235,9 @@ def plan_guess(model: SpatialModel, plan: Plan, nodes: np.ndarray, x: np.ndarray
 
     Raises:
         SolveError: status "invalid_input": the plan does not span the mesh (another
-            course).
+            course, or a plan of the rest of the course for a mesh from before its start).
     """
-    if abs(plan.s_m[0] - nodes[0]) > 1.0 or abs(plan.s_m[-1] - nodes[-1]) > 1.0:
+    if plan.s_m[0] - nodes[0] > 1.0 or abs(plan.s_m[-1] - nodes[-1]) > 1.0:
         msg = (f"the guess spans {plan.s_m[0]:.0f}-{plan.s_m[-1]:.0f} m, the mesh "
                f"{nodes[0]:.0f}-{nodes[-1]:.0f} m: a plan of another course?")
         raise SolveError(msg, status="invalid_input")
@@ -253,7 +270,7 @@ def bounds(model: SpatialModel, course: Course, nodes: np.ndarray, rider: Rider,
         lbx[model.index("delta_n")], ubx[model.index("delta_n")] = -1.0, 1.0  # C14
         lbx[model.index("alpha")], ubx[model.index("alpha")] = -1.0, 1.0
         lbx[model.index("phi")], ubx[model.index("phi")] = -1.2, 1.2
-    lbx[:, 0] = ubx[:, 0] = x0
+    lbx[:, 0] = ubx[:, 0] = np.clip(x0, lbx[:, 0], ubx[:, 0])
     u_max = np.array([U_DELTA_MAX, U_W_MAX])[-model.nu:, None]
     lbu = np.repeat(-u_max, n - 1, axis=1)
     return (lbx, ubx), (lbu, -lbu)
@@ -261,8 +278,11 @@ def bounds(model: SpatialModel, course: Course, nodes: np.ndarray, rider: Rider,
 
 def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions(),
                settings: OcpSettings = OcpSettings(), *, model: str = "3d",
-               guess: Plan | None = None) -> Plan:
+               guess: Plan | None = None, start: Start | None = None) -> Plan:
     """Solve the minimum-time OCP over the whole course and return the `Plan`.
+
+    `start`: solve the rest of the course from a rider's state instead (the pacing
+    engine's re-plan after the rider left the plan); the end conditions stay.
 
     `guess`: start IPOPT from this plan (any mesh, either model; `plan_guess`) instead
     of the default guess; the boundary conditions stay those of `rider`/`conditions`.
@@ -286,7 +306,8 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     check_inputs(course, rider, settings)
     t_start = time.perf_counter()
     h_max = settings.h_max_m if model == "3d" else settings.h_max_1d_m
-    nodes = build_mesh(course, settings.h_min_m, h_max, settings.uniform_m)
+    nodes = build_mesh(course, settings.h_min_m, h_max, settings.uniform_m,
+                       start_m=0.0 if start is None else start.s_m)
     n = len(nodes) - 1
     substeps = substeps_for(float(np.max(np.diff(nodes)))) if model == "3d" else 1
     caps = (settings.jit, settings.max_iter, settings.max_cpu_time_s, settings.tol)
@@ -294,12 +315,23 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     spm = tr.model
     par = ModelParams(rider, conditions, settings.w_delta, settings.w_power).vector()
     v0 = start_speed(rider, conditions, settings)
+    if start is not None:
+        v0 = float(start.state.get("v", v0))
     x_guess, u_guess = initial_guess(spm, course, nodes, rider, conditions, v0)
     x0 = x_guess[:, 0].copy()
+    if start is not None:
+        for name, value in start.state.items():
+            if name in spm.states:
+                x0[spm.index(name)] = value
     if guess is not None:
         x_guess, u_guess = plan_guess(spm, guess, nodes, x_guess, u_guess)
-        x_guess[:, 0] = x0
     (lbx, ubx), (lbu, ubu) = bounds(spm, course, nodes, rider, settings, x0)
+    if start is not None:
+        # The guess's W' re-anchored at the start's: a rider off the plan has a deficit
+        # (or a surplus) the whole rest of the guess would otherwise ignore.
+        ie = spm.index("e_n")
+        x_guess[ie] = x_guess[ie] - (x_guess[ie, 0] - lbx[ie, 0])
+    x_guess[:, 0] = lbx[:, 0]
     lay = tr.layout
     p = tr.params(road_data(course, nodes), par)
     t_build = time.perf_counter() - t_start
@@ -328,6 +360,8 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
                          for k, v in asdict(settings).items()},
             "build_time_s": t_build, "objective": float(sol["f"]),
             "success": bool(stats.get("success", False))}
+    if start is not None:
+        meta["start"] = {"s_m": start.s_m, "state": dict(start.state)}
     if guess is not None:
         meta["guess"] = {"model": guess.model, "n_nodes": guess.n_nodes,
                          "finish_time_s": guess.finish_time_s}

@@ -360,6 +360,7 @@ def replay_ride(log_path: str | Path, course_spec: str, rider_spec: str, *,
         result = replay(log_path, engine, output=output, recorder=recorder, settings=settings,
                         metadata=metadata, progress=progress)
     finally:
+        engine.close()
         if rec is not None:
             rec.flush()
             rec.disconnect()

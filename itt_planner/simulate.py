@@ -422,6 +422,8 @@ class SimResult:
 
 #: Length over which `_Reference` averages the curvature of the line it follows.
 _LINE_SMOOTH_M = 6.0
+#: How much of the line it followed the rider keeps behind the start of new advice.
+_LEAD_IN_M = 30.0
 #: The rider never brakes for a speed below this (a walking pace).
 _V_BRAKE_MIN_MPS = 1.0
 
@@ -464,10 +466,26 @@ class _Reference:
         return cls(course, plan.s_m, plan.power_w, plan.v_mps, plan.n_m, grip_lateral, mu_y)
 
     @classmethod
-    def of_advice(cls, course: Course, advice: Advice, grip_lateral: float, mu_y: float
-                  ) -> _Reference:
-        return cls(course, advice.horizon_s_m, advice.horizon_power_w,
-                   advice.horizon_speed_mps, advice.horizon_n_m, grip_lateral, mu_y)
+    def of_advice(cls, course: Course, advice: Advice, older: _Reference, grip_lateral: float,
+                  mu_y: float) -> _Reference:
+        """The advice's profile, led in by the `older` reference's last `_LEAD_IN_M`
+        before the advice starts (its line shifted to meet the new one).
+
+        Why: advice starts at the ESTIMATED position, which GPS noise puts a few metres
+        ahead of the rider as often as behind, and the line's slope and curvature at a
+        profile's first points are one-sided differences. A line cut in a hairpin then
+        read as a sharper turn for its first metres: the rider braked 1-2 kW there
+        where the same plan followed blindly did not (bench/RESULTS.md). A rider does not
+        lose the line it was following when new advice comes.
+        """
+        s0 = float(advice.horizon_s_m[0])
+        lead = (older.s_m < s0 - 1e-3) & (older.s_m >= s0 - _LEAD_IN_M)
+        shift = float(advice.horizon_n_m[0] - np.interp(s0, older.s_m, older.n_m))
+        return cls(course, np.concatenate([older.s_m[lead], advice.horizon_s_m]),
+                   np.concatenate([older.power_w[lead], advice.horizon_power_w]),
+                   np.concatenate([older.v_mps[lead], advice.horizon_speed_mps]),
+                   np.concatenate([older.n_m[lead] + shift, advice.horizon_n_m]),
+                   grip_lateral, mu_y)
 
     def at(self, s: float, v: float, behaviour: RiderBehaviour, decel_mps2: float
            ) -> tuple[float, float, float, float, float]:
@@ -512,7 +530,8 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
     `scenario`. With `policy=replanned` the sensor samples feed a
     `PacingEngine` (built on `planner`, a shared `HorizonPlanner` that keeps its own
     conditions - build it with `planning_conditions` - or its own), whose
-    advice the rider follows from the moment it is published; the other policies follow
+    advice the rider follows from the moment it is published (the engine runs in its
+    deterministic mode: simulated time is not the wall clock); the other policies follow
     the full-course `plan` or constant CP and need no engine. The rider's noise and the
     sensors draw from `seed`, identically for every policy, so policies compare on the
     same truth. `progress` draws a bar over the distance on stderr.
@@ -537,9 +556,12 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
     sens = Sensors(course, sensors, np.random.default_rng([seed, 2]), t0_s)
     engine = None
     if policy is Policy.REPLANNED:
+        # Simulated time is not the wall clock: the engine's deterministic mode judges
+        # nothing by wall time (overruns, when a re-solve of the course is ready).
         engine = PacingEngine(course, rider, plan,
                               conditions=planning_conditions(conditions, behaviour),
-                              settings=engine_settings, planner=planner)  # type: ignore[arg-type]
+                              settings=dataclasses.replace(engine_settings, deterministic=True),
+                              planner=planner)  # type: ignore[arg-type]
     grip = (behaviour.grip_lateral, conditions.mu_y)
     decel = behaviour.grip_brake * conditions.mu_x * GRAVITY_MPS2
     plan_ref = _Reference.of_plan(course, plan, *grip)
@@ -571,7 +593,7 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
             adv = engine.update(t0_s + t)
             if adv is not None:
                 advice.append(adv)
-                ref = _Reference.of_advice(course, adv, *grip)
+                ref = _Reference.of_advice(course, adv, ref, *grip)
         rows.append((t, s, x[0], x[4], y[0], x[7] * truth_rider.w_prime_j, y[3]))
         # The rider's target at the current point.
         follow = plan_ref if (ref is plan_ref or s >= ref.s_m[-1]) else ref
@@ -609,6 +631,8 @@ def simulate_ride(course: Course, rider: Rider, plan: Plan, *,
             break
         x, s, t, y = x_next, s_next, t + dt_s, np.asarray(y_next).ravel()
     bar.close()
+    if engine is not None:
+        engine.close()
     arr = np.array(rows)
     return SimResult(
         scenario=scenario, policy=policy, t_s=arr[:, 0], s_m=arr[:, 1], n_m=arr[:, 2],

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
 from mcap.reader import make_reader
 
+from itt_planner.course_replan import CourseReplanSettings
 from itt_planner.engine import ON_PLAN
 from itt_planner.ridelog import METADATA_NAME, read_ride_log
 from itt_planner.replay import replay_ride
@@ -61,7 +63,9 @@ def _assert_advice_covers_ride(out: Path, bag: Path, period_s: float) -> None:
 def test_make_demo_bag_replays_with_advice_for_the_whole_ride(tmp_path: Path) -> None:
     """The `make demo` bag (the rider's CP 5 % below the planner's belief), replanned
     every 10 s of ride time to keep the suite quick: the plan is advised while the rider
-    keeps to it, then the engine sees the rider run dry, refits CP and replans."""
+    keeps to it, then the engine sees the rider run dry, refits CP and replans with the
+    horizon until the rest of the course, re-solved for the refitted CP, is the plan
+    advised (`course_replan`, 15 s of ride time later)."""
     bag = BAGS / "typical_verona-like_cp-overestimated.mcap"
     result = replay_ride(bag, "verona-like", "typical", output=tmp_path / "advice.mcap",
                          replan_period_s=10.0, cache_dir=tmp_path / "cache")
@@ -73,7 +77,11 @@ def test_make_demo_bag_replays_with_advice_for_the_whole_ride(tmp_path: Path) ->
     assert statuses[0] == ON_PLAN
     first_solve = next(i for i, st in enumerate(statuses) if st != ON_PLAN)
     assert first_solve > len(statuses) / 4  # on the plan until the rider runs dry
-    assert sum(st.startswith("Solve") for st in statuses[first_solve:]) > len(statuses) / 4
+    back = next(i for i in range(first_solve, len(statuses)) if statuses[i] == ON_PLAN)
+    # The horizon until the re-solve is due (`delay_s`, 15 s: the next 10 s advice after).
+    assert back - first_solve == math.ceil(CourseReplanSettings().delay_s / 10.0)
+    assert all(st.startswith("Solve") for st in statuses[first_solve:back])
+    assert statuses.count(ON_PLAN) > 0.9 * len(statuses)
 
 
 @pytest.mark.slow

@@ -23,7 +23,9 @@ from itt_planner.course import Course, GeoOrigin
 from itt_planner.course_loader import load_course
 from itt_planner.errors import RiderError, SolveError
 from itt_planner.model import build_model, steady_speed_mps
-from itt_planner.ocp import OcpSettings, compare_riders, longest_stretch, plan_guess, solve_plan
+from itt_planner.ocp import (
+    OcpSettings, Start, compare_riders, longest_stretch, plan_guess, solve_plan,
+)
 from itt_planner.plan import Plan, corner_table, splits
 from itt_planner.plan_cache import load_or_solve
 from itt_planner.rider import PRESETS, Rider
@@ -130,6 +132,31 @@ def test_warm_start_from_a_plan(hairpin_plan: Plan) -> None:
     with pytest.raises(SolveError) as err:  # a plan of another course
         solve_plan(straight(), rider, guess=hairpin_plan)
     assert err.value.status == "invalid_input"
+
+
+def test_rest_of_the_course_from_a_rider_state(hairpin_plan: Plan) -> None:
+    """`start=`: the rest of the course from a mid-course state (the engine's re-plan).
+    With a quarter of the plan's W' there, the rest is slower than the plan's rest, W'
+    stays >= 0, the start state is kept (a position off the road clipped onto it) and
+    the rider still brakes for the hairpin."""
+    course, rider, p = hairpin(), PRESETS["paper"], hairpin_plan
+    s0 = 150.0
+    e0 = 0.25 * float(p.at("e_n", s0))
+    state = {"n": 9.0, "alpha": 0.0, "phi": 0.0, "phi_dot": 0.0,
+             "v": float(p.at("v_mps", s0)), "w_n": float(p.at("w_n", s0)), "e_n": e0,
+             "delta_n": 0.0, "not_a_state": 1.0}
+    rest = solve_plan(course, rider, guess=p, start=Start(s_m=s0, state=state))
+    assert rest.meta["success"], rest.solver_status
+    assert rest.s_m[0] == s0 and rest.s_m[-1] == pytest.approx(course.length_m)
+    assert rest.t_s[0] == 0.0
+    assert rest.e_n[0] == pytest.approx(e0) and rest.v_mps[0] == pytest.approx(state["v"])
+    assert rest.n_m[0] == pytest.approx(4.0 - OcpSettings().margin_m)  # the road's edge
+    assert rest.e_n.min() >= -1e-6
+    assert rest.finish_time_s > p.finish_time_s - float(p.at("t_s", s0)) + 0.5
+    apex = course.corners[0].apex_s_m
+    assert rest.w_n[(rest.s_m > apex - 150) & (rest.s_m < apex)].min() < 0
+    with pytest.raises(SolveError):  # a guess that starts after the mesh
+        solve_plan(course, rider, guess=rest, start=Start(s_m=50.0, state=state))
 
 
 def test_wet_and_head_wind_are_slower(hairpin_plan: Plan) -> None:

@@ -130,6 +130,11 @@ class NodeParams:
         replan_period_s: stamp time between two advices.
         on_plan_band_j: W' deviation from the plan within which the advice is the plan
             itself (no replan); 0.0 replans every period (`EngineSettings`).
+        course_replan_period_s: off the plan, the rest of the course is re-solved in
+            the background at most this often and adopted once solved
+            (`CourseReplanSettings`); 0.0 never.
+        line_gate_m: the horizon plans from the advised line unless the GPS puts the
+            rider further off it than this (`EngineSettings`); 0.0 from the GPS always.
         tick_period_s: period of the replan timer (node clock); the engine decides
             whether a replan is due.
         diagnostics_period_s: stamp time between two `/diagnostics` messages.
@@ -147,6 +152,8 @@ class NodeParams:
     horizon_m: float = 1000.0
     replan_period_s: float = 1.0
     on_plan_band_j: float = 2000.0
+    course_replan_period_s: float = 30.0
+    line_gate_m: float = 5.0
     tick_period_s: float = 0.1
     diagnostics_period_s: float = 1.0
     rerun_sink: str = ''
@@ -163,6 +170,7 @@ def build_engine(params: NodeParams) -> Any:
     """
     from itt_planner.conditions import Conditions
     from itt_planner.course_loader import load_course
+    from itt_planner.course_replan import CourseReplanSettings
     from itt_planner.engine import EngineSettings, PacingEngine
     from itt_planner.plan import Plan
     from itt_planner.rider import load_rider
@@ -178,8 +186,10 @@ def build_engine(params: NodeParams) -> Any:
 
         plan = load_or_solve(course, rider, conditions, OcpSettings(), '3d',
                              cache_dir=Path(params.plan_cache))
-    settings = EngineSettings(replan_period_s=params.replan_period_s,
-                              horizon_m=params.horizon_m, on_plan_band_j=params.on_plan_band_j)
+    settings = EngineSettings(
+        replan_period_s=params.replan_period_s, horizon_m=params.horizon_m,
+        on_plan_band_j=params.on_plan_band_j, line_gate_m=params.line_gate_m,
+        course_replan=CourseReplanSettings(period_s=params.course_replan_period_s))
     return PacingEngine(course, rider, plan, conditions=conditions, settings=settings)
 
 
@@ -400,8 +410,10 @@ class PacingNode(Node):
         return recorder
 
     def close(self) -> None:
-        """Save the state, finish the output log, flush Rerun (call before exit)."""
+        """Save the state, stop the engine's worker, finish the output log, flush Rerun
+        (call before exit)."""
         self.save_state()
+        self.engine.close()
         if self._log_writer is not None:
             with self._io_lock:
                 self._log_writer.close()
