@@ -63,8 +63,10 @@ log = logging.getLogger(__name__)
 
 #: Solver status of advice that is the full-course plan (the rider is on it).
 ON_PLAN = "on_plan"
-#: Relative CP difference within which a plan counts as solved for the CP in use.
-_CP_TOL = 0.01
+#: Relative CP difference within which a plan counts as solved for the CP in use: what
+#: a refit can tell (it found 417.4-422.3 W for a true 418 W), and what a hot start that
+#: ignores the advice can fool the shortfall detector into (refits 0.3-1.5 % low).
+_CP_TOL = 0.02
 #: Closer than this to the finish there is nothing left to plan.
 _FINISHED_M = 5.0
 
@@ -294,8 +296,7 @@ class PacingEngine:
         return self._on_plan
 
     def _plan_fits_cp(self) -> bool:
-        """Whether the plan in force was solved for the CP in use, within `_CP_TOL` (a
-        refit that moved CP by 0.1 W, seen after hot starts, changes no plan).
+        """Whether the plan in force was solved for the CP in use, within `_CP_TOL`.
         Called with `self._lock` held."""
         cp = self._estimator.rider.critical_power_w
         return abs(self._plan_cp_w - cp) <= _CP_TOL * cp

@@ -421,11 +421,23 @@ class SimResult:
 
 
 #: Length over which `_Reference` averages the curvature of the line it follows.
-_LINE_SMOOTH_M = 6.0
+_LINE_SMOOTH_M = 8.0
+#: Length over which it takes the line's slope to the road.
+_SLOPE_M = 2.0
 #: How much of the line it followed the rider keeps behind the start of new advice.
 _LEAD_IN_M = 30.0
+#: Spacing of the road-aligned grid the rider's reference is sampled on.
+_GRID_M = 0.5
 #: The rider never brakes for a speed below this (a walking pace).
 _V_BRAKE_MIN_MPS = 1.0
+
+
+def _windowed_slope(s_m: np.ndarray, y: np.ndarray, window_m: float) -> np.ndarray:
+    """dy/ds at every `s_m` as the change of `y` across `window_m` centred there (cut at
+    the ends), `y` linear between the points."""
+    lo = np.maximum(s_m - window_m / 2, s_m[0])
+    hi = np.minimum(s_m + window_m / 2, s_m[-1])
+    return (np.interp(hi, s_m, y) - np.interp(lo, s_m, y)) / np.maximum(hi - lo, 1e-9)
 
 
 class _Reference:
@@ -440,22 +452,32 @@ class _Reference:
 
     def __init__(self, course: Course, s_m: np.ndarray, power_w: np.ndarray,
                  v_mps: np.ndarray, n_m: np.ndarray, grip_lateral: float, mu_y: float) -> None:
+        grid = np.arange(math.ceil(s_m[0] / _GRID_M) * _GRID_M, s_m[-1], _GRID_M)
+        if len(grid) > 2:
+            # The line as a curve, sampled on a grid fixed to the road: its slope and
+            # curvature are then the same whatever points a profile came as (advice
+            # starts at an interpolated point; differences over the profile's own points
+            # made the rider brake 2 kW where the same plan followed blindly did not).
+            power_w, v_mps, n_m = (np.interp(grid, s_m, a) for a in (power_w, v_mps, n_m))
+            s_m = grid
         self.s_m, self.power_w, self.v_mps, self.n_m = s_m, power_w, v_mps, n_m
-        self.dn_ds = np.gradient(n_m, s_m) if len(s_m) > 1 else np.zeros(1)
+        self.dn_ds = (_windowed_slope(s_m, n_m, _SLOPE_M) if len(s_m) > 2 else
+                      np.gradient(n_m, s_m) if len(s_m) > 1 else np.zeros(1))
         self.v_grip = np.full(len(s_m), np.inf)
         self.kappa = np.zeros(len(s_m))
         if len(s_m) > 2:
             # Heading of the line = road heading + the line's angle to the road; its
             # change per metre travelled along the line is the line's curvature.
             one_nk = 1 - n_m * course.at("kappa_per_m", s_m)
-            psi = course.at("theta_rad", s_m) + np.arctan2(self.dn_ds, one_nk)
-            dl = np.hypot(one_nk, self.dn_ds) * np.gradient(s_m)
-            kappa = np.gradient(np.unwrap(psi)) / np.maximum(dl, 1e-6)
+            psi = np.unwrap(course.at("theta_rad", s_m) + np.arctan2(self.dn_ds, one_nk))
+            dl_ds = np.hypot(one_nk, self.dn_ds)
+            length = np.concatenate([[0.0], np.cumsum(0.5 * (dl_ds[1:] + dl_ds[:-1])
+                                                      * np.diff(s_m))])
             # A rider feels the turn, not metre-scale wiggles of the sampled line: the
-            # mean curvature over ~`_LINE_SMOOTH_M` (the heading change across it).
-            half = max(1, round(_LINE_SMOOTH_M / 2 / max(float(np.mean(np.diff(s_m))), 1e-3)))
-            kernel = np.ones(2 * half + 1) / (2 * half + 1)
-            self.kappa = np.convolve(np.pad(kappa, half, mode="edge"), kernel, "valid")
+            # mean curvature over `_LINE_SMOOTH_M` of road, the heading change across it
+            # per metre of line.
+            self.kappa = (_windowed_slope(s_m, psi, _LINE_SMOOTH_M)
+                          / np.maximum(_windowed_slope(s_m, length, _LINE_SMOOTH_M), 1e-6))
             # v^2 kappa <= grip_lateral mu_y g (C16 with a_x = 0).
             self.v_grip = np.sqrt(grip_lateral * mu_y * GRAVITY_MPS2
                                   / np.maximum(np.abs(self.kappa), 1e-9))
@@ -479,7 +501,7 @@ class _Reference:
         lose the line it was following when new advice comes.
         """
         s0 = float(advice.horizon_s_m[0])
-        lead = (older.s_m < s0 - 1e-3) & (older.s_m >= s0 - _LEAD_IN_M)
+        lead = (older.s_m < s0) & (older.s_m >= s0 - _LEAD_IN_M)
         shift = float(advice.horizon_n_m[0] - np.interp(s0, older.s_m, older.n_m))
         return cls(course, np.concatenate([older.s_m[lead], advice.horizon_s_m]),
                    np.concatenate([older.power_w[lead], advice.horizon_power_w]),
