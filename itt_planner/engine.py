@@ -391,9 +391,13 @@ class PacingEngine:
                 or state.w_prime_j < st.shortfall_min_w_prime * self.rider.w_prime_j):
             return None
         new_cp = self._estimator.refit_critical_power(0.0)
+        window.clear()
+        if new_cp >= cp:  # the balance of this CP has been empty already: nothing to refit
+            log.info("engine: rider held %.0f W against %.0f W advised; the balance at CP "
+                     "%.0f W was empty earlier: CP kept", mean_power, mean_target, cp)
+            return None
         self._refits.append((stamp_s, cp, new_cp))
         self._stats["cp_refits"] += 1
-        window.clear()
         log.warning("engine: rider held %.0f W against %.0f W advised (CP %.0f W) for %.0f s "
                     "with W' %.0f J left: out of W'; CP refitted to %.0f W", mean_power,
                     mean_target, cp, st.shortfall_window_s, state.w_prime_j, new_cp)
