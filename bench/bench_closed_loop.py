@@ -101,9 +101,7 @@ def main() -> None:
     for frac in points:
         advice = res.advice[int(frac * len(res.advice))]
         s = advice.state.s_m
-        start = start_from(plan, s, dict(zip(planner.state_names,
-                                             planner.initial_state(advice.state, s),
-                                             strict=True)))
+        start = start_from(planner, advice.state, s)
         t0 = time.perf_counter()
         sol = solve_plan(course, RIDER, belief, guess=plan, start=start)
         full.append(time.perf_counter() - t0)

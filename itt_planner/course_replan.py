@@ -32,6 +32,7 @@ import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from itt_planner.conditions import Conditions
 from itt_planner.course import Course
@@ -39,6 +40,10 @@ from itt_planner.errors import SolveError
 from itt_planner.ocp import OcpSettings, Start, solve_plan
 from itt_planner.plan import Plan
 from itt_planner.rider import Rider
+from itt_planner.state import RiderState
+
+if TYPE_CHECKING:
+    from itt_planner.horizon import HorizonPlanner
 
 
 @dataclass(frozen=True)
@@ -62,11 +67,14 @@ class CourseReplanSettings:
     ocp: OcpSettings = field(default_factory=lambda: OcpSettings(max_cpu_time_s=60.0))
 
 
-def start_from(plan: Plan, s_m: float, horizon_state: dict[str, float]) -> Start:
-    """The OCP start at `s_m` from the horizon model's initial state (the estimate,
-    clipped so the NLP is feasible: `HorizonPlanner.initial_state`) and the plan's lean
-    there (the estimate has none; the rider is near the plan's line)."""
-    return Start(s_m=s_m, state={**horizon_state, "phi": float(plan.at("phi_rad", s_m)),
+def start_from(planner: HorizonPlanner, state: RiderState, s_m: float) -> Start:
+    """The OCP start at `s_m`: the horizon model's initial state from `state` (clipped so
+    the NLP is feasible: `HorizonPlanner.initial_state`) and the lean of the planner's
+    plan there (the estimate has none; the rider is near the plan's line)."""
+    x0 = planner.initial_state(state, s_m)
+    plan = planner.plan
+    return Start(s_m=s_m, state={**dict(zip(planner.state_names, map(float, x0), strict=True)),
+                                 "phi": float(plan.at("phi_rad", s_m)),
                                  "phi_dot": float(plan.at("phi_dot_radps", s_m))})
 
 

@@ -318,9 +318,7 @@ class PacingEngine:
         """Ask for the rest of the course re-solved from `state` (`course_replan`; the
         replanner rate-limits). Called with `self._solve_lock` held, the planner current."""
         s0 = float(np.clip(state.s_m, 0.0, self.course.length_m - 1.0))
-        x0 = self.planner.initial_state(state, s0)
-        names = self.planner.state_names
-        start = start_from(self.plan, s0, {k: float(v) for k, v in zip(names, x0, strict=True)})
+        start = start_from(self.planner, state, s0)
         if self._course_replanner.request(stamp_s, self.planner.rider, self.plan, start):
             self._stats["course_replans_asked"] += 1
             log.info("engine: off the plan at s=%.0f m (W' %.0f J, CP %.0f W): re-solving the "
