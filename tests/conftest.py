@@ -1,17 +1,17 @@
-"""Shared fixtures: the real data beside the checkout and small synthetic courses."""
+"""Shared fixtures: real data (in the repo or beside the checkout), small synthetic courses."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
-SHARED_DATA = ROOT.parent / "shared" / "data"
+from real_data import data_path
 
 
 @pytest.fixture(scope="session")
-def shared_data() -> Path:
-    """`../shared/data` (real courses and rides). CI always has it beside the clone."""
-    assert SHARED_DATA.is_dir(), f"expected the shared data at {SHARED_DATA}"
-    return SHARED_DATA
+def data_file() -> Callable[[str], Path]:
+    """Look up a real file by its path under `../shared/data` (`"rides/x.fit"`):
+    `tests/data/` first (the MIT rides the repo ships), then `../shared/data/`, else the
+    test is skipped with a reason naming the file (unlicensed, lives only beside CI)."""
+    return data_path

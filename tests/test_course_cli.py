@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -18,8 +19,8 @@ KEYS = {"length_m", "gain_m", "loss_m", "max_grade", "min_grade", "n_corners", "
 CORNER_KEYS = {"apex_s_m", "entry_s_m", "exit_s_m", "min_radius_m", "angle_deg", "direction"}
 
 
-def test_info_json_on_a_gps_track(shared_data: Path) -> None:
-    path = shared_data / "courses" / "tokyo2020_olympic_itt_lap.csv"
+def test_info_json_on_a_gps_track(data_file: Callable[[str], Path]) -> None:
+    path = data_file("courses/tokyo2020_olympic_itt_lap.csv")
     result = runner.invoke(app, ["course", "info", str(path), "--json"])
     assert result.exit_code == 0, result.output
     info = json.loads(result.stdout)

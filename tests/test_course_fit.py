@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -126,8 +127,8 @@ def test_synthetic_track_over_seeds_0_to_19() -> None:
     assert all(counts[k] >= v for k, v in floors.items()), counts
 
 
-def test_tokyo_lap_is_a_closed_loop_of_22_1_km(shared_data: Path) -> None:
-    course = fit_course_file(shared_data / "courses" / "tokyo2020_olympic_itt_lap.csv")
+def test_tokyo_lap_is_a_closed_loop_of_22_1_km(data_file: Callable[[str], Path]) -> None:
+    course = fit_course_file(data_file("courses/tokyo2020_olympic_itt_lap.csv"))
     assert course.closed_loop
     assert course.length_m == pytest.approx(22_100.0, rel=0.01)
     tight = [c for c in course.corners if c.min_radius_m < 50.0]
@@ -142,8 +143,8 @@ def test_tokyo_lap_is_a_closed_loop_of_22_1_km(shared_data: Path) -> None:
 @pytest.mark.parametrize("name", ["edge810_vector_stjohns_2013.fit", "edge1000_ardennes_2019.fit",
                                   "sauerland_2025.fit", "elemnt_shanghai_2019_stopgo.fit",
                                   "zwift_bologna_tt_virtual.tcx"])
-def test_every_ride_gives_plausible_grades(shared_data: Path, name: str) -> None:
-    course = fit_course_file(shared_data / "rides" / name)
+def test_every_ride_gives_plausible_grades(data_file: Callable[[str], Path], name: str) -> None:
+    course = fit_course_file(data_file(f"rides/{name}"))
     grade = np.tan(course.beta_rad)
     assert np.all(np.abs(grade) <= 0.25), (grade.min(), grade.max())
     assert course.length_m > 10_000
@@ -155,8 +156,9 @@ def test_every_ride_gives_plausible_grades(shared_data: Path, name: str) -> None
         c.min_radius_m for c in course.corners)
 
 
-def test_sauerland_pauses_and_jumps_leave_no_spurious_geometry(shared_data: Path) -> None:
-    course = fit_course_file(shared_data / "rides" / "sauerland_2025.fit")
+def test_sauerland_pauses_and_jumps_leave_no_spurious_geometry(
+        data_file: Callable[[str], Path]) -> None:
+    course = fit_course_file(data_file("rides/sauerland_2025.fit"))
     assert course.length_m == pytest.approx(99_000.0, rel=0.03)
     assert not course.closed_loop
 

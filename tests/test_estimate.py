@@ -200,11 +200,11 @@ RIDES = ["edge1000_ardennes_2019.fit", "edge810_vector_stjohns_2013.fit",
 
 
 @pytest.mark.parametrize("name", RIDES)
-def test_real_ride_on_its_own_track(shared_data, name):
+def test_real_ride_on_its_own_track(data_file, name):
     """Every record of the real ride is fed as it was recorded (gaps, pauses, GPS jumps,
     NaNs and power spikes included); the course is the ride's own fitted track. The
     whole ride is used (the estimator runs at ~10 k samples/s)."""
-    rec = read_recording(shared_data / "rides" / name)
+    rec = read_recording(data_file(f"rides/{name}"))
     course = fit_course(rec)
     est = StateEstimator(course, RIDER)
     progress = []

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from pathlib import Path
 
 import fitdecode
@@ -58,19 +59,30 @@ def source_counts(path: Path) -> dict[str, object]:
             "/itt/gps/fix": pos, "/itt/speed": speed, "/itt/power": power}
 
 
+class Imports:
+    """Each ride imported on first use (a test of an absent unlicensed ride skips alone)."""
+
+    def __init__(self, data_file: Callable[[str], Path], out: Path) -> None:
+        self.data_file, self.out, self.done = data_file, out, {}
+
+    def __getitem__(self, name: str) -> ImportSummary:
+        if name not in self.done:
+            src = self.data_file(f"rides/{name}")
+            self.done[name] = import_ride(src, self.out / f"{name}.mcap", rider="R")
+        return self.done[name]
+
+
 @pytest.fixture(scope="module")
-def imported(shared_data: Path, tmp_path_factory: pytest.TempPathFactory
-             ) -> dict[str, ImportSummary]:
-    out = tmp_path_factory.mktemp("imports")
-    return {name: import_ride(shared_data / "rides" / name, out / f"{name}.mcap", rider="R")
-            for name in RIDES}
+def imported(data_file: Callable[[str], Path], tmp_path_factory: pytest.TempPathFactory
+             ) -> Imports:
+    return Imports(data_file, tmp_path_factory.mktemp("imports"))
 
 
 @pytest.mark.parametrize("name", RIDES)
-def test_every_ride_imports_with_matching_counts(name: str, imported: dict[str, ImportSummary],
-                                                 shared_data: Path) -> None:
+def test_every_ride_imports_with_matching_counts(name: str, imported: Imports,
+                                                 data_file: Callable[[str], Path]) -> None:
     summary = imported[name]
-    src = shared_data / "rides" / name
+    src = data_file(f"rides/{name}")
     want = source_counts(src)
     assert summary.records == want["records"]
     assert summary.duration_s == pytest.approx(want["duration_s"], abs=1e-3)
@@ -91,8 +103,11 @@ def test_every_ride_imports_with_matching_counts(name: str, imported: dict[str, 
     assert all(kinds[type(v)] == t and v.stamp_s == pytest.approx(s) for t, s, v in entries)
 
 
-def test_bad_ride_is_reported_not_cleaned(imported: dict[str, ImportSummary]) -> None:
+def test_bad_ride_is_reported_not_cleaned(imported: Imports) -> None:
     """The data README's facts: sauerland has 8 pauses (longest 755 s), 7 GPS jumps, 3 spikes."""
+    clean = imported["edge810_vector_stjohns_2013.fit"]
+    assert (clean.pauses, clean.gps_jumps, clean.power_spikes) == ([], 0, 0)
+    assert clean.duration_s == pytest.approx(78 * 60, abs=60)  # "1:18 h"
     s = imported["sauerland_2025.fit"]
     assert len(s.pauses) == 8 and max(p.duration_s for p in s.pauses) == 755.0
     assert (s.gps_jumps, s.power_spikes) == (7, 3)
@@ -100,22 +115,19 @@ def test_bad_ride_is_reported_not_cleaned(imported: dict[str, ImportSummary]) ->
     # Kept as recorded: the spikes are in the log.
     powers = [v.power_w for t, _, v in RideLogReader(s.output) if t == "/itt/power"]
     assert sum(p > 1500 for p in powers) == 3
-    clean = imported["edge810_vector_stjohns_2013.fit"]
-    assert (clean.pauses, clean.gps_jumps, clean.power_spikes) == ([], 0, 0)
-    assert clean.duration_s == pytest.approx(78 * 60, abs=60)  # "1:18 h"
     zwift = imported["zwift_bologna_tt_virtual.tcx"]
     assert [p.duration_s for p in zwift.pauses] == [220.0]  # "one 220 s pause at the top"
 
 
 def test_shanghai_keeps_speed_and_power_of_records_without_position(
-        imported: dict[str, ImportSummary]) -> None:
+        imported: Imports) -> None:
     s = imported["elemnt_shanghai_2019_stopgo.fit"]
     assert s.records_without_position > 100  # "~125 records without power or position"
     assert s.topics["/itt/speed"] > s.topics["/itt/gps/fix"]
     assert sum(p.duration_s for p in s.pauses) > 2.5 * 3600  # "2.8 h are gaps"
 
 
-def test_imported_log_four_readers(imported: dict[str, ImportSummary], tmp_path: Path) -> None:
+def test_imported_log_four_readers(imported: Imports, tmp_path: Path) -> None:
     s = imported["zwift_bologna_tt_virtual.tcx"]
     types = {"/itt/gps/fix": "sensor_msgs/msg/NavSatFix",
              "/itt/speed": "geometry_msgs/msg/TwistStamped",
@@ -132,10 +144,9 @@ def test_imported_log_four_readers(imported: dict[str, ImportSummary], tmp_path:
         assert math.isnan(fix.position_covariance[0]) is False
 
 
-def test_cli_import_json(shared_data: Path, tmp_path: Path) -> None:
+def test_cli_import_json(data_file: Callable[[str], Path], tmp_path: Path) -> None:
     out = tmp_path / "z.mcap"
-    result = CliRunner().invoke(app, ["import", str(shared_data / "rides" /
-                                                    "zwift_bologna_tt_virtual.tcx"),
+    result = CliRunner().invoke(app, ["import", str(data_file("rides/zwift_bologna_tt_virtual.tcx")),
                                       "-o", str(out), "--rider", "A. Rider", "--json"])
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)
@@ -157,7 +168,7 @@ def test_summary_helpers() -> None:
     assert count_gps_jumps(lat[:1], lon[:1], t[:1]) == 0
 
 
-def test_ride_without_times_is_refused(shared_data: Path, tmp_path: Path) -> None:
-    course = shared_data / "courses" / "tokyo2020_olympic_itt_lap.csv"
+def test_ride_without_times_is_refused(data_file: Callable[[str], Path], tmp_path: Path) -> None:
+    course = data_file("courses/tokyo2020_olympic_itt_lap.csv")
     with pytest.raises(RideLogError, match="tokyo2020_olympic_itt_lap.csv: .*no timestamps"):
         import_ride(course, tmp_path / "x.mcap")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -11,8 +12,8 @@ from itt_planner.errors import CourseError
 from itt_planner.track_files import file_sha256, read_recording
 
 
-def test_fit_ride_has_positions_power_and_stamps(shared_data: Path) -> None:
-    rec = read_recording(shared_data / "rides" / "edge810_vector_stjohns_2013.fit")
+def test_fit_ride_has_positions_power_and_stamps(data_file: Callable[[str], Path]) -> None:
+    rec = read_recording(data_file("rides/edge810_vector_stjohns_2013.fit"))
     assert len(rec) > 4000
     assert 47 < np.nanmean(rec.lat_deg) < 48 and -53 < np.nanmean(rec.lon_deg) < -52
     assert rec.time_s is not None and np.all(np.diff(rec.time_s) > 0)
@@ -20,10 +21,13 @@ def test_fit_ride_has_positions_power_and_stamps(shared_data: Path) -> None:
     assert rec.sha256 == file_sha256(rec.path)
 
 
-def test_tcx_and_csv(shared_data: Path) -> None:
-    tcx = read_recording(shared_data / "rides" / "zwift_bologna_tt_virtual.tcx")
+def test_tcx(data_file: Callable[[str], Path]) -> None:
+    tcx = read_recording(data_file("rides/zwift_bologna_tt_virtual.tcx"))
     assert len(tcx) > 1000 and tcx.power_w is not None
-    csv = read_recording(shared_data / "courses" / "tokyo2020_olympic_itt_lap.csv")
+
+
+def test_csv(data_file: Callable[[str], Path]) -> None:
+    csv = read_recording(data_file("courses/tokyo2020_olympic_itt_lap.csv"))
     assert len(csv) > 1900 and csv.time_s is None
     assert 35 < csv.lat_deg[0] < 36 and 138 < csv.lon_deg[0] < 139
 
