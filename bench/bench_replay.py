@@ -34,6 +34,7 @@ from itt_planner.course_loader import load_course  # noqa: E402
 from itt_planner.ocp import OcpSettings  # noqa: E402
 from itt_planner.plan_cache import load_or_solve  # noqa: E402
 from itt_planner.replay import replay_ride  # noqa: E402
+from itt_planner.session import SessionConfig  # noqa: E402
 from itt_planner.ridelog import RideLogReader  # noqa: E402
 from itt_planner.rider import PRESETS  # noqa: E402
 
@@ -72,9 +73,11 @@ def main() -> int:
         print(f"input: {log_path.relative_to(ROOT)}")
 
         def run(replan_period_s: float) -> object:
-            return replay_ride(log_path, COURSE, RIDER, output=tmp_dir / "advice.mcap",
-                               replan_period_s=replan_period_s, model=args.model,
-                               cache_dir=ROOT / ".itt_cache", progress=True)
+            config = SessionConfig(course=COURSE, rider=RIDER, model=args.model,
+                                   replan_period_s=replan_period_s, deterministic=True,
+                                   plan_cache=str(ROOT / ".itt_cache"))
+            return replay_ride(log_path, config, output=tmp_dir / "advice.mcap",
+                               progress=True)
 
         full_s, full_all, full = median_of(args.runs, lambda: run(1.0))
         est_s, est_all, est = median_of(args.runs, lambda: run(math.inf))

@@ -12,6 +12,7 @@ from itt_planner.course_replan import CourseReplanSettings
 from itt_planner.engine import ON_PLAN
 from itt_planner.ridelog import METADATA_NAME, read_ride_log
 from itt_planner.replay import replay_ride
+from itt_planner.session import SessionConfig
 
 BAGS = Path(__file__).resolve().parents[1] / "bags"
 DEMO = {  # bag -> (course, rider)
@@ -67,8 +68,9 @@ def test_make_demo_bag_replays_with_advice_for_the_whole_ride(tmp_path: Path) ->
     horizon until the rest of the course, re-solved for the refitted CP, is the plan
     advised (`course_replan`, 15 s of ride time later)."""
     bag = BAGS / "typical_verona-like_cp-overestimated.mcap"
-    result = replay_ride(bag, "verona-like", "typical", output=tmp_path / "advice.mcap",
-                         replan_period_s=10.0, cache_dir=tmp_path / "cache")
+    config = SessionConfig(course="verona-like", rider="typical", replan_period_s=10.0,
+                           plan_cache=str(tmp_path / "cache"), deterministic=True)
+    result = replay_ride(bag, config, output=tmp_path / "advice.mcap")
     assert not result.errors
     assert result.advice_out >= result.ride_duration_s / 10 - 2
     _assert_advice_covers_ride(tmp_path / "advice.mcap", bag, 10.0)
@@ -92,7 +94,9 @@ def test_every_demo_bag_replays_deterministically_at_1_hz(name: str, tmp_path: P
     payloads = []
     for run in ("a", "b"):
         out = tmp_path / f"{run}.mcap"
-        result = replay_ride(bag, course, rider, output=out, cache_dir=tmp_path / "cache")
+        config = SessionConfig(course=course, rider=rider, plan_cache=str(tmp_path / "cache"),
+                               deterministic=True)
+        result = replay_ride(bag, config, output=out)
         assert not result.errors
         _assert_advice_covers_ride(out, bag, 1.0)
         with out.open("rb") as fh:

@@ -12,6 +12,7 @@ from mcap_readers import check_all_readers, rerun_value
 from typer.testing import CliRunner
 
 from itt_planner import replay as replay_mod
+from itt_planner import session as session_mod
 from itt_planner.cli import app
 from itt_planner.conditions import Conditions
 from itt_planner.engine import ON_PLAN, EngineSettings, PacingEngine
@@ -21,6 +22,7 @@ from itt_planner.plan_cache import load_or_solve
 from itt_planner.replay import ReplaySettings, parse_speed, replay
 from itt_planner.ridelog import RawRecord, RideLogReader, RideLogWriter, RideMetadata
 from itt_planner.rider import PRESETS
+from itt_planner.session import RideSession, SessionConfig
 from itt_planner.simulate import hairpin_course, sensor_samples
 
 T0 = 1_779_000_000.0
@@ -47,18 +49,24 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> dict:
     # Built once (compiles CasADi Functions); no wall-time cap, as `replay_ride` does
     # for a deterministic replay.
     planner = HorizonPlanner(course, rider, plan, settings=HorizonSettings(
-        horizon_m=HORIZON_M, max_wall_time_s=replay_mod.NO_WALL_TIME_LIMIT_S))
+        horizon_m=HORIZON_M, max_wall_time_s=session_mod.NO_WALL_TIME_LIMIT_S))
     return {"course": course, "rider": rider, "plan": plan, "log": log, "tmp": tmp,
             "n_in": len(samples), "planner": planner}
 
 
-def engine_for(setup: dict) -> PacingEngine:
-    """A fresh engine; the shared planner forgets its warm start from the last replay."""
+def session_for(setup: dict, output: Path | None = None,
+                recorder: object | None = None) -> RideSession:
+    """A session on a fresh engine; the shared planner forgets its warm start from the
+    last replay."""
     setup["planner"].reset()
-    return PacingEngine(setup["course"], setup["rider"], setup["plan"],
-                        planner=setup["planner"],
-                        settings=EngineSettings(replan_period_s=REPLAN_S, horizon_m=HORIZON_M,
-                                                deterministic=True))
+    engine = PacingEngine(setup["course"], setup["rider"], setup["plan"],
+                          planner=setup["planner"],
+                          settings=EngineSettings(replan_period_s=REPLAN_S,
+                                                  horizon_m=HORIZON_M, deterministic=True))
+    writer = RideLogWriter(output) if output is not None else None
+    return RideSession(SessionConfig(replan_period_s=REPLAN_S, horizon_m=HORIZON_M,
+                                     deterministic=True),
+                       engine, writer=writer, recorder=recorder)
 
 
 @pytest.fixture(scope="module")
@@ -66,7 +74,7 @@ def two_runs(setup: dict) -> list[tuple[replay_mod.ReplayResult, Path]]:
     runs = []
     for i in range(2):
         out = setup["tmp"] / f"advice{i}.mcap"
-        runs.append((replay(setup["log"], engine_for(setup), output=out), out))
+        runs.append((replay(setup["log"], session_for(setup, out)), out))
     return runs
 
 
@@ -149,7 +157,7 @@ def test_damaged_input_replays_everything_before_the_damage(setup: dict,
     cut_extra = tmp_path / "cut_extra.mcap"
     cut_extra.write_bytes(extra.read_bytes()[: int(extra.stat().st_size * 0.6)])
     out = tmp_path / "out.mcap"
-    result = replay(cut_extra, engine_for(setup), output=out)
+    result = replay(cut_extra, session_for(setup, out))
     assert len(result.errors) == 1 and "cut_extra.mcap: truncated" in result.errors[0]
     assert any("unknown topic /rosout" in w for w in result.warnings)
     reader = RideLogReader(out)
@@ -176,9 +184,7 @@ def test_rerun_recording(setup: dict, tmp_path: Path) -> None:
     data = setup["log"].read_bytes()
     short = tmp_path / "short.mcap"
     short.write_bytes(data[: len(data) // 4])
-    result = replay(short, engine_for(setup), recorder=recorder)
-    rec.flush()
-    rec.disconnect()
+    result = replay(short, session_for(setup, recorder=recorder))  # flushes and disconnects
     assert result.advice_out >= 3
     entities = {c.entity_path for c in RrdReader(rrd).store().stream()}
     assert len(entities) > 5

@@ -24,6 +24,7 @@ from itt_planner.errors import IttError
 from itt_planner.plan import Plan
 from itt_planner.report import render_html, rider_from_plan, summary, write_report
 from itt_planner.replay import replay_ride
+from itt_planner.session import SessionConfig
 from itt_planner.ride_report import load_ride_trace
 from itt_planner.ridelog import read_ride_log
 
@@ -129,8 +130,9 @@ def replayed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, floa
     """(replay output, plan cache, ride duration) of the typical rider's demo bag."""
     tmp = tmp_path_factory.mktemp("ride")
     out, cache = tmp / "replayed.mcap", tmp / "cache"
-    result = replay_ride(DEMO_BAG, "verona-like", "typical", output=out, replan_period_s=20.0,
-                         model="1d", cache_dir=cache)
+    config = SessionConfig(course="verona-like", rider="typical", model="1d",
+                           replan_period_s=20.0, plan_cache=str(cache), deterministic=True)
+    result = replay_ride(DEMO_BAG, config, output=out)
     assert result.errors == [] and result.advice_out > 50
     return out, cache, result.ride_duration_s
 

@@ -76,16 +76,18 @@ def replay_cli(
     """Replay a ride log through the pacing engine; write advice to MCAP (and Rerun)."""
     from itt_planner.errors import IttError  # noqa: PLC0415
     from itt_planner.replay import ReplaySettings, parse_speed, replay_ride  # noqa: PLC0415
+    from itt_planner.session import SessionConfig  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         try:
-            settings = ReplaySettings(speed=parse_speed(speed), deterministic=not live_timing)
+            settings = ReplaySettings(speed=parse_speed(speed))
         except ValueError as err:
             raise IttError(str(err)) from None
-        result = replay_ride(log, course, rider, output=out, rrd=rrd, rerun_sinks=tuple(rerun),
-                             settings=settings,
-                             replan_period_s=replan_period, horizon_m=horizon_m, model=model,
-                             cache_dir=cache_dir, progress=progress_enabled()).as_dict()
+        config = SessionConfig(course=course, rider=rider, model=model,
+                               plan_cache=str(cache_dir), horizon_m=horizon_m,
+                               replan_period_s=replan_period, deterministic=not live_timing)
+        result = replay_ride(log, config, output=out, rrd=rrd, rerun_sinks=tuple(rerun),
+                             settings=settings, progress=progress_enabled()).as_dict()
     emit(result, as_json, _human_replay)
     if result["errors"]:  # damaged input: everything readable was replayed and written
         raise typer.Exit(code=1)

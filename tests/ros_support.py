@@ -1,10 +1,10 @@
-"""Helpers of the DDS tests and the node benchmark: an isolated DDS domain, a short ride
-(course, plan, ride log) and the `itt-planner` processes of a loopback pipeline."""
+"""Helpers of the ROS 2 tests and the node benchmark: an isolated ROS domain on the
+loopback interface, a short ride (course, plan, ride log) and the `itt-planner`
+processes of a pipeline."""
 
 from __future__ import annotations
 
 import os
-import random
 import signal
 import subprocess
 import sys
@@ -15,25 +15,18 @@ from typing import Any
 
 import numpy as np
 
-from itt_planner.dds.context import shipped_config_uri
+from itt_msgs_py.dds_env import localhost_env, random_domain_id
 
 #: POSIX stamp of the synthetic ride's start (2026-11-22 08:00 UTC).
 RIDE_T0_S = 1795334400.0
 
 
-def dds_env(domain_id: int | None = None) -> dict[str, str]:
-    """Environment of a test process: loopback Cyclone config, a domain of its own."""
+def ros_env(domain_id: int | None = None) -> dict[str, str]:
+    """Environment of a test process: Fast DDS on loopback only, a domain of its own."""
     env = dict(os.environ)
-    env["CYCLONEDDS_URI"] = shipped_config_uri()
-    env["ROS_DOMAIN_ID"] = str(domain_id if domain_id is not None else random_domain())
-    env["ITT_RUNTIME"] = "dds"
+    env.update(localhost_env(domain_id if domain_id is not None else random_domain_id()))
     env["PYTHONUNBUFFERED"] = "1"
     return env
-
-
-def random_domain() -> int:
-    """A ROS domain id unlikely to be used by a concurrent test (ROS allows 0..232)."""
-    return random.randint(1, 200)
 
 
 @dataclass(frozen=True)
@@ -69,7 +62,7 @@ def make_ride(folder: Path, *, input_hz: float = 4.0, gps_hz: float = 1.0,
                        power_period_s=1.0 / input_hz), t0_s=RIDE_T0_S)
     ride = Ride(course=course_path, plan=plan_path, log=folder / "ride.mcap",
                 duration_s=float(end))
-    with RideLogWriter(ride.log, metadata=RideMetadata(source="tests/dds_support.py",
+    with RideLogWriter(ride.log, metadata=RideMetadata(source="tests/ros_support.py",
                                                        rider="paper")) as writer:
         for sample in samples:
             writer.write_sample(sample)
