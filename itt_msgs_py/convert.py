@@ -14,7 +14,7 @@ import numpy as np
 
 from itt_msgs_py import topics
 from itt_msgs_py.definitions import typestore
-from itt_planner.advice import Advice, Diagnostic, Level
+from itt_planner.advice import Advice, Cue, Diagnostic, Level
 from itt_planner.samples import GpsFix, PowerReading, Sample, WheelSpeed
 from itt_planner.state import RiderState
 
@@ -166,7 +166,9 @@ def advice_to_msg(advice: Advice) -> Any:
     """`itt_msgs/Advice` (frame `map`), holding everything of the core `Advice`."""
     return AdviceMsg(
         header=header(advice.stamp_s, MAP_FRAME), state=state_to_msg(advice.state),
-        target_power_w=advice.target_power_w,
+        target_power_w=advice.target_power_w, cue=int(advice.cue),
+        corner_speed_mps=advice.corner_speed_mps, corner_distance_m=advice.corner_distance_m,
+        cp_in_use_w=advice.cp_in_use_w, plan_version=int(advice.plan_version),
         s_m=_f64(advice.horizon_s_m), power_w=_f64(advice.horizon_power_w),
         speed_mps=_f64(advice.horizon_speed_mps), n_m=_f64(advice.horizon_n_m),
         line_x_m=_f64(advice.line_x_m), line_y_m=_f64(advice.line_y_m),
@@ -191,13 +193,19 @@ def msg_to_advice(msg: Any) -> Advice:
         predicted_finish_s=msg.predicted_finish_s, w_prime_now_j=msg.w_prime_now_j,
         w_prime_finish_j=msg.w_prime_finish_j, solver_status=msg.solver_status,
         iterations=msg.iterations, solve_time_s=msg.solve_time_s, fallback=bool(msg.fallback),
+        cue=Cue(msg.cue), corner_speed_mps=msg.corner_speed_mps,
+        corner_distance_m=msg.corner_distance_m, cp_in_use_w=msg.cp_in_use_w,
+        plan_version=int(msg.plan_version),
     )
 
 
 def target_power_msg(advice: Advice) -> Any:
-    """`itt_msgs/TargetPower` of an advice: the power now and the planned speed here."""
+    """`itt_msgs/TargetPower` of an advice: the power now, the cue and the next corner,
+    and the planned speed here."""
     speed = float(advice.horizon_speed_mps[0]) if len(advice.horizon_speed_mps) else math.nan
     return TargetPower(header=header(advice.stamp_s, BASE_FRAME), power_w=advice.target_power_w,
+                       cue=int(advice.cue), corner_speed_mps=advice.corner_speed_mps,
+                       corner_distance_m=advice.corner_distance_m,
                        speed_mps=speed, fallback=bool(advice.fallback))
 
 

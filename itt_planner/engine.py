@@ -28,6 +28,13 @@ rider's state with the full-course OCP in the background (`course_replan`, at mo
 every `course_replan.period_s`); that new plan becomes the plan in force, advised as
 such while the rider keeps to it and the horizon's terminal treatment otherwise.
 
+The engine is the one owner of the belief it plans with: the CP in use and the W' model
+(`cp_monitor.CpMonitor`, which revises CP both ways from the power the rider delivers)
+and the full-course plan in force with its version (`plan_version`, +1 at every
+adoption). Each `Advice` carries both, and its target power is shaped into what a rider
+can follow, with a pedal / coast / brake / climb cue (`advice_shaping`). `counts` sums
+up what was not used silently (fallbacks, failed re-solves, refits).
+
 A failed, raising or overrunning solve never reaches the rider: the last good advice,
 shifted to the current `s`, stays in force with `fallback=True` (before any good solve,
 the full-course plan over the horizon serves), and a diagnostic says so.
@@ -40,16 +47,18 @@ import logging
 import math
 import threading
 import time
-from collections import Counter, deque
+from collections import Counter
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from itt_planner.advice import Advice, Diagnostic, Level
+from itt_planner.advice import Advice, Cue, Diagnostic, Level
+from itt_planner.advice_shaping import AdviceShaper, ShapingSettings
 from itt_planner.conditions import Conditions
 from itt_planner.course import Course
 from itt_planner.course_replan import CourseReplanner, CourseReplanSettings, start_from
+from itt_planner.cp_monitor import CpMonitor, CpMonitorSettings, Refit
 from itt_planner.estimate import EstimatorSettings, StateEstimator
 from itt_planner.plan import Plan
 from itt_planner.rider import Rider
@@ -87,17 +96,8 @@ class EngineSettings:
         deterministic: publish `solve_time_s = 0.0` and never judge overruns by the
             wall clock, for byte-identical replays (module docstring).
         estimator: settings of the state estimator.
-        shortfall_window_s: the W'-exhaustion detector (`_check_shortfall`) looks at
-            this much stamp time of (target, measured) power ...
-        shortfall_above_cp: ... and fires when the mean target is this fraction above
-            the CP in use while the mean measured power stays below that CP ...
-        shortfall_min_w_prime: ... and the balance still shows more than this fraction
-            of W' (otherwise the balance already agrees with an exhausted rider) ...
-        shortfall_below_cp: ... and the measured power is within this fraction below
-            that CP: an exhausted rider holds what it still can, its true CP. A rider far
-            below both is not following the advice (a hot start that ignores it fired
-            the detector at 0.84 CP and refitted a right CP 2.5 % too low); a CP
-            overestimated by more than this is not detected.
+        cp_monitor: when CP is refitted, down or up (`cp_monitor`).
+        shaping: how the planner's power becomes a target and a cue (`advice_shaping`).
         on_plan_band_j: W' deviation from the plan within which the advice is the plan
             (module docstring; 0 replans always). 2 kJ: about three times the balance's
             error against the truth in the closed-loop tests (0.1-0.7 kJ).
@@ -115,13 +115,48 @@ class EngineSettings:
     failures_for_error: int = 3
     deterministic: bool = False
     estimator: EstimatorSettings = field(default_factory=EstimatorSettings)
-    shortfall_window_s: float = 20.0
-    shortfall_above_cp: float = 0.05
-    shortfall_min_w_prime: float = 0.05
-    shortfall_below_cp: float = 0.10
+    cp_monitor: CpMonitorSettings = field(default_factory=CpMonitorSettings)
+    shaping: ShapingSettings = field(default_factory=ShapingSettings)
     on_plan_band_j: float = 2000.0
     course_replan: CourseReplanSettings = field(default_factory=CourseReplanSettings)
     line_gate_m: float = 5.0
+
+
+@dataclass(frozen=True)
+class EngineCounts:
+    """What the engine did not use silently, for warnings (`PacingEngine.counts`).
+
+    Attributes:
+        advice: advices published; fallbacks: of them, the last good advice shifted.
+        solves, solve_failures: horizon solves and those that failed, raised or overran.
+        unconverged_solves: accepted horizon solves that did not converge (a
+            budget-capped feasible iterate, "Suboptimal_Feasible", or IPOPT's acceptable
+            level).
+        course_replans_asked, course_replans_adopted, course_replan_failures:
+            re-solves of the rest of the course asked for, adopted, failed or unconverged.
+        refits_up, refits_down: CP revisions (`cp_monitor`).
+        cp_in_use_w, plan_version: the belief now (version 0: the first plan).
+        plan_status, plan_converged: solver status of the plan in force.
+    """
+
+    advice: int
+    fallbacks: int
+    solves: int
+    solve_failures: int
+    unconverged_solves: int
+    course_replans_asked: int
+    course_replans_adopted: int
+    course_replan_failures: int
+    refits_up: int
+    refits_down: int
+    cp_in_use_w: float
+    plan_version: int
+    plan_status: str
+    plan_converged: bool
+
+
+#: IPOPT statuses of a converged solve (anything else accepted is counted unconverged).
+CONVERGED = ("Solve_Succeeded",)
 
 
 @dataclass(frozen=True)
@@ -166,6 +201,10 @@ class PacingEngine:
         self.settings = settings
         self.planner = planner
         self._estimator = StateEstimator(course, rider, settings.estimator)
+        self._cp = CpMonitor(rider, self._estimator, settings.cp_monitor)
+        self._shaper = AdviceShaper(course, rider.power_rate_max_wps, settings.shaping)
+        #: Version of the plan in force: 0 for `plan`, +1 at every adoption.
+        self.plan_version = 0
         self._lock = threading.Lock()  # estimator + bookkeeping
         self._solve_lock = threading.Lock()  # one solve at a time
         self._last_advice_stamp: float | None = None
@@ -179,9 +218,8 @@ class PacingEngine:
         self._last_input: dict[str, float] = {}
         #: Measured wall-clock solve times (s), for benchmarks; never published.
         self.solve_times_s: list[float] = []
-        #: (stamp, advised power at the rider's s, measured power) at every replan.
-        self._following: deque[tuple[float, float, float]] = deque()
-        self._refits: list[tuple[float, float, float]] = []  # (stamp, cp before, after)
+        #: The target power published last (what the rider was told to hold).
+        self._last_target_w: float | None = None
         self._on_plan = settings.on_plan_band_j > 0
         #: The CP the plan in force was solved for (a refit makes it not the rider's).
         self._plan_cp_w = rider.critical_power_w
@@ -231,15 +269,38 @@ class PacingEngine:
 
     @property
     def counters(self) -> dict[str, int]:
-        """Estimator rejections and engine events (solves, failures, fallbacks)."""
+        """Estimator rejections and engine events (solves, failures, fallbacks, refits)."""
         with self._lock:
             return {**self._estimator.counters, **self._stats}
 
     @property
-    def critical_power_w(self) -> float:
-        """The CP the W' balance uses: the believed one until a refit lowers it."""
+    def counts(self) -> EngineCounts:
+        """The engine's events and the belief in force (`EngineCounts`), read-only."""
         with self._lock:
-            return self._estimator.rider.critical_power_w
+            st = self._stats
+            return EngineCounts(
+                advice=st["advice"], fallbacks=st["fallbacks"], solves=st["solves"],
+                solve_failures=st["failures"] + st["overruns"] + st["exceptions"],
+                unconverged_solves=st["unconverged_solves"],
+                course_replans_asked=st["course_replans_asked"],
+                course_replans_adopted=st["course_replans"],
+                course_replan_failures=st["course_replan_failures"],
+                refits_up=st["cp_refits_up"], refits_down=st["cp_refits_down"],
+                cp_in_use_w=self._cp.cp_in_use_w, plan_version=self.plan_version,
+                plan_status=self.plan.solver_status,
+                plan_converged=self.plan.solver_status in CONVERGED)
+
+    @property
+    def critical_power_w(self) -> float:
+        """The CP in use: the believed one until a refit revises it."""
+        with self._lock:
+            return self._cp.cp_in_use_w
+
+    @property
+    def refits(self) -> list[Refit]:
+        """Every CP refit so far with its evidence."""
+        with self._lock:
+            return list(self._cp.refits)
 
     # ---- the replan ---------------------------------------------------------------------------
     def update(self, stamp_s: float) -> Advice | None:
@@ -255,9 +316,8 @@ class PacingEngine:
             if state is None:
                 return None
             self._last_advice_stamp = stamp_s
-            refit = self._check_shortfall(stamp_s, state)
-            if refit is not None:
-                state = refit
+            if self._last_target_w is not None and self._refit(stamp_s, state):
+                state = self._estimator.state(stamp_s) or state
                 self._planner_stale = True
             self._adopt_course_plan(stamp_s)
             on_plan = (self._follows_plan(state)
@@ -298,7 +358,7 @@ class PacingEngine:
     def _plan_fits_cp(self) -> bool:
         """Whether the plan in force was solved for the CP in use, within `_CP_TOL`.
         Called with `self._lock` held."""
-        cp = self._estimator.rider.critical_power_w
+        cp = self._cp.cp_in_use_w
         return abs(self._plan_cp_w - cp) <= _CP_TOL * cp
 
     def _replace_planner(self) -> None:
@@ -308,7 +368,8 @@ class PacingEngine:
         from itt_planner.horizon import HorizonPlanner
 
         with self._lock:
-            rider, plan = self._estimator.rider, self.plan
+            rider = dataclasses.replace(self.rider, critical_power_w=self._cp.cp_in_use_w)
+            plan = self.plan
             self._planner_stale = False
         old = self.planner
         self.planner = HorizonPlanner(self.course, rider, plan, conditions=old.conditions,
@@ -341,65 +402,34 @@ class PacingEngine:
             self._stats["course_replan_failures"] += 1
             return
         self.plan = plan
+        self.plan_version += 1
         self._plan_cp_w = float(plan.meta["rider"]["critical_power_w"])
         self._planner_stale = True
         self._on_plan = True  # judged against the full band: the rider started on it
         self._stats["course_replans"] += 1
-        log.info("engine: new plan from s=%.0f m adopted (%s, %d iterations, %.1f s)",
-                 plan.s_m[0], plan.solver_status, plan.iterations, plan.solve_time_s)
+        if plan.solver_status not in CONVERGED:
+            self._stats["course_replans_unconverged"] += 1
+        log.info("engine: new plan %d from s=%.0f m adopted (%s, %d iterations, %.1f s)",
+                 self.plan_version, plan.s_m[0], plan.solver_status, plan.iterations,
+                 plan.solve_time_s)
 
     def close(self) -> None:
         """Stop the background re-solve (a solve still running is abandoned)."""
         self._course_replanner.close()
 
-    def _check_shortfall(self, stamp_s: float, state: RiderState) -> RiderState | None:
-        """Detect a rider out of W' that the balance says is not, and refit CP.
-
-        The balance integrates measured power against the CP the planner believes; if
-        the true CP is lower, it shows W' the rider no longer has. The signature: over
-        `shortfall_window_s`, advice clearly above CP (`shortfall_above_cp`) while the
-        measured power stays just below CP (`shortfall_below_cp`) - a rider with W' left
-        follows the target within its lag and noise (0.8 s, a few %), far above CP.
-        Then the estimator refits CP so that the balance of the whole power history is
-        empty now (`StateEstimator.refit_critical_power`) and the replan starts from
-        W' = 0.
-        The planner is then rebuilt with the refitted CP (`_replace_planner`), so the
-        horizon no longer plans power above what the rider can sustain, and the plan,
-        solved for a CP the rider does not have, is no longer followed (`_follows_plan`)
-        until the rest of the course is re-solved with the refitted CP.
-        Called with `self._lock` held. Returns the state to plan from after a refit,
-        else None.
-        """
-        st = self.settings
-        good = self._last_good
-        if good is None or not good.s_m[0] <= state.s_m <= good.s_m[-1]:
-            return None
-        target = float(np.interp(state.s_m, good.s_m, good.power_w))
-        window = self._following
-        window.append((stamp_s, target, state.power_w))
-        while window and window[0][0] < stamp_s - st.shortfall_window_s:
-            window.popleft()
-        if window[-1][0] - window[0][0] < 0.9 * st.shortfall_window_s:
-            return None
-        cp = self._estimator.rider.critical_power_w
-        mean_target = float(np.mean([w[1] for w in window]))
-        mean_power = float(np.mean([w[2] for w in window]))
-        if (mean_target < cp * (1 + st.shortfall_above_cp)
-                or not cp * (1 - st.shortfall_below_cp) <= mean_power < cp
-                or state.w_prime_j < st.shortfall_min_w_prime * self.rider.w_prime_j):
-            return None
-        new_cp = self._estimator.refit_critical_power(0.0)
-        window.clear()
-        if new_cp >= cp:  # the balance of this CP has been empty already: nothing to refit
-            log.info("engine: rider held %.0f W against %.0f W advised; the balance at CP "
-                     "%.0f W was empty earlier: CP kept", mean_power, mean_target, cp)
-            return None
-        self._refits.append((stamp_s, cp, new_cp))
+    def _refit(self, stamp_s: float, state: RiderState) -> bool:
+        """Let the CP monitor judge the last target against the power delivered
+        (`cp_monitor`); after a refit the planner is rebuilt with the new CP
+        (`_replace_planner`) and the plan, solved for another CP, is no longer followed
+        (`_follows_plan`) until the rest of the course is re-solved with it. Called with
+        `self._lock` held. Returns whether CP was refitted."""
+        assert self._last_target_w is not None
+        refit = self._cp.observe(stamp_s, state, self._last_target_w)
+        if refit is None:
+            return False
         self._stats["cp_refits"] += 1
-        log.warning("engine: rider held %.0f W against %.0f W advised (CP %.0f W) for %.0f s "
-                    "with W' %.0f J left: out of W'; CP refitted to %.0f W", mean_power,
-                    mean_target, cp, st.shortfall_window_s, state.w_prime_j, new_cp)
-        return self._estimator.state(stamp_s) or state
+        self._stats[f"cp_refits_{refit.direction}"] += 1
+        return True
 
     def _replan(self, stamp_s: float, state: RiderState, start: RiderState) -> Advice:
         """Solve the horizon from `start` (`_on_line(state)`); the advice carries the
@@ -423,6 +453,8 @@ class PacingEngine:
                    and elapsed > self.settings.max_solve_time_s)
         if sol is not None and sol.success and not overrun:
             self._consecutive_failures = 0
+            if sol.status not in CONVERGED:
+                self._stats["unconverged_solves"] += 1
             good = _Good(state, sol.s_m, sol.t_s, sol.power_w, sol.v_mps, sol.n_m,
                          sol.w_prime_j, sol.predicted_finish_s, sol.w_prime_finish_j)
             with self._lock:
@@ -504,14 +536,20 @@ class PacingEngine:
         t_then = float(np.interp(state.s_m, good.s_m, good.t_s))
         late = (state.elapsed_s - good.state.elapsed_s) - t_then
         power = cut(good.power_w)
+        speed = cut(good.v_mps)
         x, y, z = self.course.enu_at(s, cut(good.n_m))
         lat, lon, _ = self.course.to_geodetic(x, y, z)
+        # Node 0 holds the measured power (the OCP's initial state): the target is what
+        # the solution rides from there on, shaped into what a rider can follow.
+        with self._lock:
+            shaped = self._shaper.shape(stamp_s, state.s_m, state.speed_mps,
+                                        self._cp.cp_in_use_w, s, power, speed)
+            self._last_target_w = shaped["target_power_w"]
+            self._stats["advice"] += 1
+            cp, version = self._cp.cp_in_use_w, self.plan_version
         return Advice(
-            # Node 0 holds the measured power (the OCP's initial state): the target is
-            # what the solution rides from there on, the next node.
-            stamp_s=stamp_s, state=state, target_power_w=float(power[1] if len(power) > 1
-                                                               else power[0]),
-            horizon_s_m=s, horizon_power_w=power, horizon_speed_mps=cut(good.v_mps),
+            stamp_s=stamp_s, state=state, **shaped,
+            horizon_s_m=s, horizon_power_w=power, horizon_speed_mps=speed,
             horizon_n_m=cut(good.n_m), line_x_m=np.asarray(x), line_y_m=np.asarray(y),
             line_z_m=np.asarray(z), line_lat_deg=np.asarray(lat), line_lon_deg=np.asarray(lon),
             predicted_finish_s=good.predicted_finish_s + late,
@@ -519,7 +557,8 @@ class PacingEngine:
             w_prime_finish_j=good.w_prime_finish_j + (state.w_prime_j - float(
                 np.interp(state.s_m, good.s_m, good.w_prime_j))),
             solver_status=self._last_status, iterations=self._last_iterations,
-            solve_time_s=self._last_solve_time, fallback=fallback,
+            solve_time_s=self._last_solve_time, fallback=fallback, cp_in_use_w=cp,
+            plan_version=version,
         )
 
     def _finished(self, stamp_s: float, state: RiderState) -> Advice:
@@ -530,8 +569,14 @@ class PacingEngine:
         s = np.array([state.s_m])
         x, y, z = self.course.enu_at(s, np.array([state.n_m]))
         lat, lon, _ = self.course.to_geodetic(x, y, z)
+        with self._lock:
+            self._last_target_w = 0.0
+            self._shaper.reset()
+            self._stats["advice"] += 1
+            cp, version = self._cp.cp_in_use_w, self.plan_version
         return Advice(
-            stamp_s=stamp_s, state=state, target_power_w=0.0, horizon_s_m=s,
+            stamp_s=stamp_s, state=state, target_power_w=0.0, cue=Cue.COAST,
+            cp_in_use_w=cp, plan_version=version, horizon_s_m=s,
             horizon_power_w=np.zeros(1), horizon_speed_mps=np.array([state.speed_mps]),
             horizon_n_m=np.array([state.n_m]), line_x_m=np.asarray(x), line_y_m=np.asarray(y),
             line_z_m=np.asarray(z), line_lat_deg=np.asarray(lat), line_lon_deg=np.asarray(lon),
@@ -564,25 +609,14 @@ class PacingEngine:
                   "consecutive_failures": str(failures),
                   **{k: str(stats.get(k, 0)) for k in
                      ("solves", "failures", "overruns", "exceptions", "fallbacks",
-                      "course_replans_asked", "course_replans", "course_replan_failures")}}
+                      "unconverged_solves", "course_replans_asked", "course_replans",
+                      "course_replan_failures")}, "plan_version": str(self.plan_version),
+                  "plan_status": self.plan.solver_status}
         if not st.deterministic:
             values["solve_time_s"] = f"{self._last_solve_time:.4f}"
         out.append(Diagnostic(stamp_s, "itt_planner/solver", level, msg, values))
         with self._lock:
-            refits = list(self._refits)
-            cp_now = self._estimator.rider.critical_power_w
-        cp_values = {"cp_believed_w": f"{self.rider.critical_power_w:.1f}",
-                     "cp_in_use_w": f"{cp_now:.1f}", "refits": str(len(refits))}
-        if refits:
-            at, before, after = refits[-1]
-            out.append(Diagnostic(
-                stamp_s, "itt_planner/rider_model", Level.WARN,
-                f"rider ran out of W' the balance still showed (at stamp {at:.0f} s): CP "
-                f"refitted {before:.0f} -> {after:.0f} W (the planner still believes "
-                f"{self.rider.critical_power_w:.0f} W)", cp_values))
-        else:
-            out.append(Diagnostic(stamp_s, "itt_planner/rider_model", Level.OK,
-                                  "power follows the advice: CP as believed", cp_values))
+            out.append(self._cp.diagnostic(stamp_s))
         for topic in ("gps", "speed", "power"):
             seen = last_input.get(topic)
             if seen is None:
@@ -607,18 +641,24 @@ class PacingEngine:
         return out
 
     def snapshot(self) -> dict[str, Any]:
-        """W' balance, progress and the replan clock, JSON-serialisable."""
+        """W' balance, the CP in use, progress and the replan clock, JSON-serialisable."""
         with self._lock:
             return {"estimator": self._estimator.snapshot(),
+                    "cp_in_use_w": self._cp.cp_in_use_w,
                     "last_advice_stamp_s": self._last_advice_stamp}
 
     def restore(self, snap: dict[str, Any]) -> None:
-        """Resume after a node restart from `snapshot()`.
+        """Resume after a node restart from `snapshot()` (a snapshot without
+        `cp_in_use_w`, from before refits were saved, keeps the believed CP). The first
+        target after it is not rate-limited.
 
         Raises:
             KeyError: a field of the snapshot is missing.
         """
         with self._lock:
             self._estimator.restore(snap["estimator"])
+            self._estimator.use_critical_power(float(snap.get("cp_in_use_w",
+                                                              self.rider.critical_power_w)))
             self._last_advice_stamp = snap["last_advice_stamp_s"]
-
+            self._shaper.reset()
+            self._last_target_w = None

@@ -16,7 +16,10 @@ closed loop the map matching wraps around the seam; progress is cumulative and t
 published `s_m` is clipped at the course length (the ride is done there).
 
 W' balance is integrated from measured power with `wprime.e_n_rate` (model.md E9, Skiba
-by default), holding each reading until the next one for at most `power_hold_s`.
+by default), holding each reading until the next one for at most `power_hold_s`, with
+the critical power in use (`rider`). The published balance (`state`) is never below 0:
+a balance that would go below is the belief being wrong, which the pacing engine
+corrects by refitting CP (`fit_critical_power`, `use_critical_power`; `cp_monitor`).
 
 Bad inputs (NaN or negative values, time going backwards, duplicate stamps, fixes far
 off the course) are dropped with a logged warning and counted in `counters`; nothing
@@ -180,7 +183,8 @@ class StateEstimator:
         return RiderState(
             stamp_s=t, s_m=s_m, n_m=self._n, speed_mps=float(max(self._x[1], 0.0)),
             heading_rad=theta, power_w=self._power_now(t),
-            w_prime_j=self._e_n_at(t) * self.rider.w_prime_j, elapsed_s=t - self._start_s,
+            w_prime_j=max(self._e_n_at(t), 0.0) * self.rider.w_prime_j,
+            elapsed_s=t - self._start_s,
             gps_fresh=t - self._gps_t <= 3.0,
         )
 
@@ -283,48 +287,77 @@ class StateEstimator:
         return True
 
     def refit_critical_power(self, w_prime_now_j: float = 0.0) -> float:
-        """Lower the critical power until the W' balance of the power history reaches
-        `w_prime_now_j`, and carry on with it (E9 with the refitted CP).
+        """`fit_critical_power` over [0.5 CP, CP] and carry on with it (`use_critical_power`).
 
         Why: a rider who cannot hold a target above CP has run out of W' while the
         balance at the believed CP still shows some: CP was overestimated (a W' deficit
-        is far more likely than a wrong W'). The CP that explains the shortfall is the
-        highest one whose balance empties. Never raises CP; bisection on [0.5 CP, CP].
+        is far more likely than a wrong W'). Never raises CP here.
 
         Returns:
             The critical power now used (W).
         """
+        cp = self.fit_critical_power(0.5 * self.rider.critical_power_w,
+                                     self.rider.critical_power_w, w_prime_now_j)
+        if cp < self.rider.critical_power_w:
+            self.use_critical_power(cp)
+        return self.rider.critical_power_w
+
+    def fit_critical_power(self, low_w: float, high_w: float,
+                           w_prime_j: float = 0.0) -> float:
+        """The critical power in [low_w, high_w] at which the lowest W' balance over the
+        power history is `w_prime_j` (E9, the history replayed from the start or the
+        last restore; bisection to ~0.01 W). `high_w` when even that CP's balance gets
+        that low, `low_w` when even that CP's stays above. Changes nothing.
+
+        A higher CP gives a higher balance everywhere, so this is at once the highest CP
+        whose balance empties (a rider out of W': the whole shortfall is not blamed on
+        the detection window, where the rider has been empty a while) and the lowest
+        whose balance never goes below it (a rider who did more than the belief allows).
+        """
         if len(self._power_log) < 2:
             return self.rider.critical_power_w
+        target = w_prime_j / self.rider.w_prime_j
+        lo, hi = low_w, high_w
+        if self._history_balance(hi)[0] <= target:
+            return hi
+        if self._history_balance(lo)[0] >= target:
+            return lo
+        for _ in range(25):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if self._history_balance(mid)[0] < target else (lo, mid)
+        return hi
+
+    def use_critical_power(self, cp_w: float) -> None:
+        """Carry on with critical power `cp_w`: the balance now is that of the whole
+        power history replayed with it."""
+        self.rider = dataclasses.replace(self.rider, critical_power_w=cp_w)
+        if len(self._power_log) >= 2:
+            self._e_n = self._history_balance(cp_w)[1]
+            self._power_t, self._power_w = self._power_log[-1]
+
+    def w_prime_raw_j(self, stamp_s: float) -> float:
+        """The W' balance at `stamp_s` as integrated, below zero when the rider has done
+        more than the CP in use allows (`state` shows it clipped at 0)."""
+        return self._e_n_at(stamp_s) * self.rider.w_prime_j
+
+    def _history_balance(self, cp_w: float) -> tuple[float, float]:
+        """(lowest, last) normalised W' over the power history with CP `cp_w`."""
         stamps = np.array([s for s, _ in self._power_log])
         powers = np.array([p for _, p in self._power_log])
         dt = np.minimum(np.diff(stamps), self.settings.power_hold_s)
-        target = w_prime_now_j / self.rider.w_prime_j
-
-        def balance(cp: float) -> tuple[float, float]:
-            """(lowest, last) normalised W' over the history with this CP."""
-            e = low = self._e_n_log_start
-            for p, h in zip(powers[:-1], dt):
-                rate = float(e_n_rate(e, p, cp, self.rider.w_prime_j,
-                                      self.settings.wprime_model))
-                e = min(e + rate * h, 1.0)
-                low = min(low, e)
-            return low, e
-
-        # The rider has been empty for a while when the shortfall is detected: the
-        # balance must reach the target somewhere, not exactly now (that would blame the
-        # whole detection window on CP and underestimate it).
-        lo, hi = 0.5 * self.rider.critical_power_w, self.rider.critical_power_w
-        if balance(hi)[0] <= target:
-            return hi
-        for _ in range(25):  # to ~0.01 W
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if balance(mid)[0] < target else (lo, mid)
-        self.rider = dataclasses.replace(self.rider, critical_power_w=hi)
-        self._e_n = max(balance(hi)[1], 0.0)
-        self._power_t = float(stamps[-1])
-        self._power_w = float(powers[-1])
-        return hi
+        e = low = self._e_n_log_start
+        w0 = self.rider.w_prime_j
+        for p, h in zip(powers[:-1].tolist(), dt.tolist()):
+            # Skiba E9 (`wprime.e_n_rate`), written out on floats: this loop runs over
+            # the whole ride ~25 times per fit.
+            if p > cp_w:
+                e -= (p - cp_w) / w0 * h
+            elif self.settings.wprime_model is WPrimeModel.SKIBA:
+                e = min(e + (cp_w - p) * (1 - e) / w0 * h, 1.0)
+            else:
+                e = min(e + float(e_n_rate(e, p, cp_w, w0, self.settings.wprime_model)) * h, 1.0)
+            low = min(low, e)
+        return low, e
 
     # ---- stamps and counters ------------------------------------------------------------
     def _reject(self, reason: str, sample: object) -> bool:

@@ -83,7 +83,13 @@ def test_advice_contents(course, plan):
     np.testing.assert_allclose(yb, y, atol=0.05)
     # Riding the plan exactly, the replan agrees with the plan.
     assert a.predicted_finish_s == pytest.approx(plan.finish_time_s, rel=0.02)
-    assert a.target_power_w == pytest.approx(plan.at("power_w", a.state.s_m), abs=120.0)
+    assert a.horizon_power_w[1] == pytest.approx(plan.at("power_w", a.horizon_s_m[1]), abs=120.0)
+    # The target follows the plan at the rider's power rate (vW_max, 50 W/s), never < 0.
+    for before, after in zip(advice[:-1], advice[1:]):
+        assert after.target_power_w >= 0.0
+        assert abs(after.target_power_w - before.target_power_w) <= RIDER.power_rate_max_wps * (
+            after.stamp_s - before.stamp_s) + 1e-6 or after.cue != before.cue
+    assert a.cp_in_use_w == RIDER.critical_power_w and a.plan_version == 0
     assert a.w_prime_now_j == pytest.approx(plan.at("w_prime_j", a.state.s_m), abs=1500.0)
     assert a.w_prime_finish_j == pytest.approx(plan.w_prime_j[-1], abs=3000.0)
 

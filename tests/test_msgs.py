@@ -17,7 +17,7 @@ from mcap_ros2._dynamic import generate_dynamic
 import itt_msgs_py
 from itt_msgs_py import convert, topics
 from itt_msgs_py.definitions import SEPARATOR, msg_texts, msgdef
-from itt_planner.advice import Advice, Diagnostic, Level
+from itt_planner.advice import Advice, Cue, Diagnostic, Level
 from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.state import RiderState
 
@@ -37,7 +37,16 @@ def make_advice(stamp_s: float = 1_700_000_123.25, n: int = 25) -> Advice:
         line_y_m=np.sin(s / 300) * 300, line_z_m=s * 0.02, line_lat_deg=45 + s * 1e-6,
         line_lon_deg=11 + s * 1e-6, predicted_finish_s=1795.25, w_prime_now_j=15_000.0,
         w_prime_finish_j=250.0, solver_status="Solve_Succeeded", iterations=17,
-        solve_time_s=0.031, fallback=True)
+        solve_time_s=0.031, fallback=True, cue=Cue.BRAKE, corner_speed_mps=8.25,
+        corner_distance_m=87.5, cp_in_use_w=412.5, plan_version=3)
+
+
+def make_advice_without_corner() -> Advice:
+    """The advice of `make_advice` as the engine makes it on a straight, pedalling."""
+    import dataclasses
+
+    return dataclasses.replace(make_advice(), cue=Cue.PEDAL, corner_speed_mps=math.nan,
+                               corner_distance_m=math.nan)
 
 
 def test_custom_types_come_from_the_ros_package_msg_files() -> None:
@@ -130,6 +139,13 @@ def test_advice_round_trip_and_derived_messages() -> None:
 
     tp = _roundtrip(convert.target_power_msg(advice))
     assert tp.power_w == 305.5 and tp.speed_mps == advice.horizon_speed_mps[0] and tp.fallback
+    assert tp.cue == tp.CUE_BRAKE == Cue.BRAKE
+    assert (tp.corner_speed_mps, tp.corner_distance_m) == (8.25, 87.5)
+    # No corner ahead: NaN crosses the wire as NaN; the cue constants match the enum.
+    none = convert.msg_to_core(_roundtrip(convert.advice_to_msg(make_advice_without_corner())))
+    assert math.isnan(none.corner_speed_mps) and none.cue is Cue.PEDAL
+    msg = convert.advice_to_msg(advice)
+    assert {c.name: int(c) for c in Cue} == {n: getattr(msg, f"CUE_{n}") for n in Cue.__members__}
 
     path = _roundtrip(convert.target_line_msg(advice))
     assert path.header.frame_id == "map" and len(path.poses) == 25
