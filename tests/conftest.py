@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+import os
+import random
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 from real_data import data_path
+
+from itt_msgs_py.dds_env import CONFLICTING_VARS, localhost_env, ros_unavailable_reason
 
 
 @pytest.fixture(scope="session")
@@ -15,3 +19,34 @@ def data_file() -> Callable[[str], Path]:
     `tests/data/` first (the MIT rides the repo ships), then `../shared/data/`, else the
     test is skipped with a reason naming the file (unlicensed, lives only beside CI)."""
     return data_path
+
+
+@pytest.fixture(scope="session")
+def ros_unavailable() -> str | None:
+    """None where real rclpy and the built `itt_msgs` import, else set-up's one-line reason."""
+    return ros_unavailable_reason()
+
+
+@pytest.fixture
+def requires_ros(ros_unavailable: str | None) -> None:
+    """Skips the test, with set-up's reason, where real ROS 2 is not installed or built."""
+    if ros_unavailable is not None:
+        pytest.skip(ros_unavailable)
+
+
+@pytest.fixture
+def ros_env(requires_ros: None, monkeypatch: pytest.MonkeyPatch) -> dict[str, str]:
+    """Loopback-only Fast DDS on a random ROS_DOMAIN_ID of this test's own, set in this
+    process (for in-process rclpy) and returned as a full environment for subprocesses.
+
+    Domains are split between xdist workers (d % workers == worker index) so two tests
+    running at once never share one; within a worker the pick is random, so a process left
+    over from an earlier test is unlikely to be on the same domain."""
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    index = int(os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw"))
+    domain = random.choice([d for d in range(1, 102) if d % workers == index % workers])
+    for var in CONFLICTING_VARS:
+        monkeypatch.delenv(var, raising=False)
+    for var, value in localhost_env(domain).items():
+        monkeypatch.setenv(var, value)
+    return dict(os.environ)
