@@ -1,0 +1,204 @@
+"""A recorded ride as the calibration estimators see it: clean 1 Hz series, or a refusal.
+
+`prepare_ride` turns a `track_files.Recording` into a `RideSeries`: time-ordered samples
+with speed (the device's, else derived from GPS), power, altitude, travelled distance and
+air density (from altitude and temperature), split into stretches where the recording
+is continuous. It refuses, with a `CalibrationError` naming the file and the reason, a
+ride without stamps, power, altitude or movement, or one too short to fit anything.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pymap3d
+
+from itt_planner.errors import IttError
+from itt_planner.ride_import import EARTH_RADIUS_M, PAUSE_MIN_S, POWER_SPIKE_W
+from itt_planner.track_files import Recording
+
+#: Standard atmosphere (ICAO): sea-level pressure (Pa), lapse-rate exponent, scale.
+_P0_PA = 101_325.0
+_BARO_K_PER_M = 2.25577e-5
+_BARO_EXP = 5.25588
+#: Specific gas constant of dry air, J/(kg K).
+_R_DRY = 287.05
+#: Temperature used when neither the record nor the caller gives one (15 C, ISA).
+DEFAULT_TEMPERATURE_C = 15.0
+#: A ride is "moving" above this speed (m/s); below it GPS wanders and nothing is fitted.
+MOVING_MPS = 1.0
+#: Shortest moving time any estimator accepts (s).
+MIN_MOVING_S = 600.0
+
+
+class CalibrationError(IttError):
+    """A ride cannot be calibrated or validated; the message names the file and why."""
+
+
+def air_density_kgpm3(altitude_m: np.ndarray | float, temperature_c: np.ndarray | float
+                      ) -> np.ndarray:
+    """Dry-air density from the ISA pressure at `altitude_m` and the air temperature.
+
+    rho = p / (R T), p = p0 (1 - 2.25577e-5 h)^5.25588 (ISA troposphere).
+    """
+    h = np.asarray(altitude_m, float)
+    pressure = _P0_PA * (1.0 - _BARO_K_PER_M * h) ** _BARO_EXP
+    return pressure / (_R_DRY * (np.asarray(temperature_c, float) + 273.15))
+
+
+@dataclass(frozen=True, eq=False)
+class RideSeries:
+    """A ride's samples in time order (NaN-free where the estimators need it).
+
+    Attributes:
+        t_s: seconds since the first sample.
+        v_mps: speed (device wheel/GPS speed, else from consecutive fixes).
+        power_w: crank/hub power, 0 where missing.
+        ele_m: altitude, interpolated over missing samples.
+        dist_m: distance travelled, integrated from `v_mps`.
+        rho_kgpm3: air density per sample.
+        block: index of the continuous stretch each sample belongs to (a gap longer
+            than `PAUSE_MIN_S` starts a new one).
+        lat_deg, lon_deg: position (NaN where the record has none).
+        gps_speed_mps: speed from consecutive fixes (NaN across gaps), the raw-GPS
+            reference for the noise floor.
+        speed_source: "device" or "gps".
+        temperature_c: the mean temperature used for the air density.
+    """
+
+    source: str
+    t_s: np.ndarray
+    v_mps: np.ndarray
+    power_w: np.ndarray
+    ele_m: np.ndarray
+    dist_m: np.ndarray
+    rho_kgpm3: np.ndarray
+    block: np.ndarray
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    gps_speed_mps: np.ndarray
+    speed_source: str
+    temperature_c: float
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+    @property
+    def moving_time_s(self) -> float:
+        dt = np.diff(self.t_s)
+        same = np.diff(self.block) == 0
+        return float(np.sum(dt[same & (self.v_mps[1:] > MOVING_MPS)]))
+
+
+def record_temperature_c(path: Path) -> float | None:
+    """Mean `temperature` of a FIT file's records (the head unit's sensor), or None."""
+    if path.suffix.lower() != ".fit" or not path.is_file():
+        return None
+    import fitdecode  # noqa: PLC0415  (only FIT carries a temperature field)
+
+    values: list[float] = []
+    with fitdecode.FitReader(str(path), check_crc=fitdecode.CrcCheck.WARN) as reader:
+        for frame in reader:
+            if frame.frame_type == fitdecode.FIT_FRAME_DATA and frame.name == "record":
+                for f in frame.fields:
+                    if f.name == "temperature" and f.value is not None:
+                        values.append(float(f.value))
+    return float(np.median(values)) if values else None
+
+
+def gps_speed_mps(lat_deg: np.ndarray, lon_deg: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    """Speed of each sample from the great-circle step to the previous fix (NaN at gaps)."""
+    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
+    step = EARTH_RADIUS_M * pymap3d.haversine.anglesep(lon[:-1], lat[:-1], lon[1:], lat[1:],
+                                                       deg=False)
+    dt = np.diff(t_s)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speed = np.where((dt > 0) & (dt <= PAUSE_MIN_S), step / dt, np.nan)
+    return np.concatenate([[np.nan], speed])
+
+
+def prepare_ride(rec: Recording, *, temperature_c: float | None = None,
+                 min_moving_s: float = MIN_MOVING_S) -> RideSeries:
+    """The ride's series for the estimators.
+
+    Temperature: `temperature_c` if given, else the FIT records' median, else 15 C.
+
+    Raises:
+        CalibrationError: no timestamps, no power, no altitude, no speed or position,
+            or less than `min_moving_s` of moving time (the message says which).
+    """
+    where = str(rec.path)
+    if rec.time_s is None or np.sum(np.isfinite(rec.time_s)) < 2:
+        raise CalibrationError(f"{where}: no timestamps; nothing can be fitted without time")
+    if rec.power_w is None or not np.any(np.nan_to_num(rec.power_w) > 0):
+        raise CalibrationError(f"{where}: no power readings; CdA, crr, CP and W' need power")
+    ele_all = np.asarray(rec.ele_m, float)
+    if np.sum(np.isfinite(ele_all)) < 2 or np.nanmax(ele_all) - np.nanmin(ele_all) <= 0.0:
+        raise CalibrationError(f"{where}: no elevation in the record; the power balance "
+                               "needs the climbing work")
+    ok = np.isfinite(rec.time_s)
+    order = np.flatnonzero(ok)[np.argsort(rec.time_s[ok], kind="stable")]
+    t_abs = rec.time_s[order]
+    # Duplicate stamps (some head units write two records a second) keep the first.
+    first = np.concatenate([[True], np.diff(t_abs) > 0])
+    order, t_abs = order[first], t_abs[first]
+    lat, lon = rec.lat_deg[order], rec.lon_deg[order]
+    gps_v = gps_speed_mps(lat, lon, t_abs)
+    if rec.speed_mps is not None and np.sum(np.isfinite(rec.speed_mps[order])) > len(order) // 2:
+        speed, source = rec.speed_mps[order], "device"
+    elif np.sum(np.isfinite(gps_v)) > len(order) // 2:
+        speed, source = gps_v, "gps"
+    else:
+        raise CalibrationError(f"{where}: neither a speed sensor nor GPS positions; "
+                               "no speed to fit against")
+    speed = _fill(np.asarray(speed, float))
+    power = np.nan_to_num(np.asarray(rec.power_w, float)[order], nan=0.0)
+    # A meter glitch (above any sprint) carries no information: read it as missing (0).
+    power = np.where(power > POWER_SPIKE_W, 0.0, power)
+    ele = _fill(ele_all[order])
+    t = t_abs - t_abs[0]
+    block = np.concatenate([[0], np.cumsum(np.diff(t) > PAUSE_MIN_S)])
+    dt = np.diff(t)
+    same = np.diff(block) == 0
+    step = np.where(same, 0.5 * (speed[1:] + speed[:-1]) * dt, 0.0)
+    dist = np.concatenate([[0.0], np.cumsum(step)])
+    if temperature_c is None:
+        temperature_c = record_temperature_c(rec.path)
+    temp = DEFAULT_TEMPERATURE_C if temperature_c is None else float(temperature_c)
+    series = RideSeries(
+        source=where, t_s=t, v_mps=speed, power_w=power, ele_m=ele, dist_m=dist,
+        rho_kgpm3=air_density_kgpm3(ele, temp), block=block, lat_deg=lat, lon_deg=lon,
+        gps_speed_mps=gps_v, speed_source=source, temperature_c=temp,
+    )
+    if series.moving_time_s < min_moving_s:
+        raise CalibrationError(f"{where}: too short: {series.moving_time_s:.0f} s of moving "
+                               f"time, at least {min_moving_s:.0f} s needed")
+    return series
+
+
+def _fill(values: np.ndarray) -> np.ndarray:
+    """Linear interpolation over NaN samples (constant beyond the ends)."""
+    good = np.isfinite(values)
+    if good.all():
+        return values
+    idx = np.arange(len(values))
+    return np.interp(idx, idx[good], values[good])
+
+
+def smooth(values: np.ndarray, block: np.ndarray, window: int) -> np.ndarray:
+    """Centred moving average over `window` samples that never mixes two blocks."""
+    out = np.empty_like(values, dtype=float)
+    half = window // 2
+    for b in np.unique(block):
+        idx = np.flatnonzero(block == b)
+        seg = values[idx].astype(float)
+        if len(seg) <= 2 or window <= 1:
+            out[idx] = seg
+            continue
+        padded = np.concatenate([np.full(half, seg[0]), seg, np.full(half, seg[-1])])
+        kernel = np.ones(2 * half + 1) / (2 * half + 1)
+        out[idx] = np.convolve(padded, kernel, mode="valid")
+    return out
+

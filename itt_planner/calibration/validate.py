@@ -1,0 +1,115 @@
+"""Validate a rider and the planner against a real ride, and out of sample (hold-out).
+
+`validate_ride` lays the ride on its course, replays its power through the model
+(`forward`, physics check) and, on request, compares the optimal plan for the rider
+with it (`plan_check`). The air density is the ride's (altitude and temperature).
+`holdout` calibrates on all rides but one and validates on that one, for each ride.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from itt_planner.calibration.calibrate import CalibrationOptions, calibrate, load_rides
+from itt_planner.calibration.forward import ForwardRun, forward_1d
+from itt_planner.calibration.physics_check import physics_check
+from itt_planner.calibration.plan_check import plan_check
+from itt_planner.calibration.ride_data import CalibrationError, RideSeries
+from itt_planner.calibration.ride_on_course import RideOnCourse, ride_on_course
+from itt_planner.conditions import Conditions
+from itt_planner.course import Course
+from itt_planner.rider import Rider
+
+log = logging.getLogger(__name__)
+
+
+@dataclasses.dataclass(eq=False)
+class Validation:
+    """Everything `validate` computed for one ride (the figures, and the runs for plots)."""
+
+    figures: dict[str, Any]
+    ride: RideSeries
+    on_course: RideOnCourse
+    course: Course
+    runs: list[ForwardRun]
+    plans: list[Any]
+
+
+def ride_conditions(ride: RideSeries) -> Conditions:
+    """Still air at the ride's mean air density."""
+    return Conditions(air_density_kgpm3=float(np.mean(ride.rho_kgpm3)))
+
+
+def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *,
+                  plan_models: tuple[str, ...] = (), temperature_c: float | None = None,
+                  cache_dir: Path = Path(".itt_cache")) -> Validation:
+    """Physics check (1D forward run) and, for each of `plan_models`, the plan check.
+
+    Raises:
+        CalibrationError: the ride is unusable or does not lie on `course`.
+        SolveError: a plan could not be set up (a plan that does not converge is
+            checked anyway and says so: `converged: false`).
+    """
+    series = ride if isinstance(ride, RideSeries) else load_rides([ride], temperature_c)[0]
+    on_course = ride_on_course(series, course)
+    conditions = ride_conditions(series)
+    runs = [forward_1d(course, rider, on_course, conditions)]
+    figures: dict[str, Any] = {
+        "ride": series.source, "course": course.name, "rider": rider.name,
+        "matched_share": round(on_course.matched_share, 3),
+        "covered_m": round(float(on_course.s_m[-1] - on_course.s_m[0]), 1),
+        "air_density_kgpm3": round(conditions.air_density_kgpm3, 4),
+        "physics": [physics_check(run, on_course, course) for run in runs],
+        "physics_3d": ("not run: the 3D virtual rider (simulate.simulate_ride) follows a "
+                       "plan's line and power by distance; replaying a measured ride through "
+                       "it is not implemented yet"),
+    }
+    plans = []
+    if plan_models:
+        from itt_planner.ocp import OcpSettings  # noqa: PLC0415  (CasADi OCP, lazy)
+        from itt_planner.plan_cache import load_or_solve  # noqa: PLC0415
+
+        figures["plans"] = []
+        for model in plan_models:
+            plan = load_or_solve(course, rider, conditions, OcpSettings(), model,
+                                 cache_dir=cache_dir)
+            if not plan.meta.get("success", False):
+                log.warning("plan (%s) for %s did not converge: %s", model, course.name,
+                            plan.solver_status)
+            plans.append(plan)
+            figures["plans"].append(plan_check(plan, on_course, course))
+    return Validation(figures, series, on_course, course, runs, plans)
+
+
+def holdout(rides: list[str | Path], courses: list[Course],
+            options: CalibrationOptions = CalibrationOptions()) -> dict[str, Any]:
+    """Calibrate on all rides but one, validate (physics) on that one, for each ride.
+
+    Raises:
+        CalibrationError: fewer than two rides.
+    """
+    if len(rides) < 2:
+        raise CalibrationError("--holdout needs at least two rides (fit on the others)")
+    out: list[dict[str, Any]] = []
+    for k, ride in enumerate(rides):
+        train = [r for j, r in enumerate(rides) if j != k]
+        try:
+            fit = calibrate(train, options, courses=[c for j, c in enumerate(courses) if j != k])
+            val = validate_ride(ride, courses[k], fit.rider, temperature_c=options.temperature_c)
+        except CalibrationError as err:
+            out.append({"held_out": str(ride), "refused": str(err)})
+            continue
+        phys = val.figures["physics"][0]
+        out.append({"held_out": str(ride), "trained_on": [str(r) for r in train],
+                    "cda_m2": round(fit.rider.drag_area_m2, 4),
+                    "mass_kg": round(fit.rider.mass_kg, 1),
+                    "refusals": fit.refusals,
+                    **{k2: phys[k2] for k2 in ("finish_error_pct", "mae_kmh", "rmse_kmh",
+                                               "bias_kmh", "share_within_2kmh",
+                                               "noise_floor_kmh")}})
+    return {"holdout": out}
