@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -24,11 +24,17 @@ from itt_planner.errors import CourseError
 
 COURSE_SUFFIX = ".course.npz"
 DEFAULT_HALF_WIDTH_M = 4.0
+#: Full road width (m) of a GPS course unless set per course or stretch: a closed-road
+#: time trial on a two-lane road, where the rider has the whole carriageway (2 x 3.0 m
+#: lanes, the common lane width of European secondary roads; main roads have 3.25-3.5 m,
+#: narrow country roads 5-5.5 m in all). The GPS trace is taken as the centre line; the
+#: OCP keeps its own edge margin (C11) inside this width.
+GPS_ROAD_WIDTH_M = 6.0
 #: A bend whose radius goes below this is a corner (m).
 CORNER_RADIUS_M = 100.0
 #: ... and it must turn at least this much in total (rad) to count.
 CORNER_MIN_ANGLE_RAD = math.radians(20.0)
-_FORMAT_VERSION = 1
+_FORMAT_VERSION = 2
 
 
 @dataclass(frozen=True)
@@ -76,6 +82,9 @@ class Course:
     source: str = ""
     source_sha256: str = ""
     synthetic: bool = False
+    #: How a GPS course was made (trim, altitude source and checks, road width, warnings);
+    #: JSON-able, saved with the course, shown by `course info`. Empty for built courses.
+    build: dict[str, Any] = field(default_factory=dict)
 
     # ---- construction -------------------------------------------------------------
     @classmethod
@@ -86,6 +95,7 @@ class Course:
         width_right_m: float | np.ndarray = DEFAULT_HALF_WIDTH_M,
         theta_rad: np.ndarray | None = None, kappa_per_m: np.ndarray | None = None,
         source: str = "", source_sha256: str = "", synthetic: bool = False,
+        build: dict[str, Any] | None = None,
     ) -> Course:
         """Resample an already smooth ENU centre line to a uniform `ds_m` grid.
 
@@ -130,7 +140,7 @@ class Course:
             name=name, s_m=s, x_m=xs, y_m=ys, z_m=zs, theta_rad=theta, kappa_per_m=kappa,
             beta_rad=beta, width_left_m=wl, width_right_m=wr, origin=origin,
             closed_loop=closed_loop, corners=detect_corners(s, kappa), source=source,
-            source_sha256=source_sha256, synthetic=synthetic,
+            source_sha256=source_sha256, synthetic=synthetic, build=build or {},
         )
 
     # ---- queries --------------------------------------------------------------------
@@ -170,6 +180,7 @@ class Course:
         """The figures `itt-planner course info` prints (edge units: %, deg)."""
         dz = np.diff(self.z_m)
         grade = np.tan(self.beta_rad)
+        w = self.width_left_m + self.width_right_m
         radii = [c.min_radius_m for c in self.corners]
         return {
             "name": self.name,
@@ -184,6 +195,9 @@ class Course:
             "synthetic": self.synthetic,
             "source": self.source,
             "source_sha256": self.source_sha256,
+            "road_width_m": [round(float(w.min()), 2), round(float(w.max()), 2)],
+            "build": self.build,
+            "warnings": list(self.build.get("warnings", [])),
             "corners": [
                 {"apex_s_m": round(c.apex_s_m, 1), "entry_s_m": round(c.entry_s_m, 1),
                  "exit_s_m": round(c.exit_s_m, 1), "min_radius_m": round(c.min_radius_m, 1),
@@ -201,6 +215,7 @@ class Course:
             "origin": asdict(self.origin), "closed_loop": self.closed_loop,
             "corners": [asdict(c) for c in self.corners], "source": self.source,
             "source_sha256": self.source_sha256, "synthetic": self.synthetic,
+            "build": self.build,
         }
         with path.open("wb") as fh:
             np.savez_compressed(fh, header=np.array(json.dumps(header)),
@@ -227,7 +242,8 @@ class Course:
             name=header["name"], origin=GeoOrigin(**header["origin"]),
             closed_loop=header["closed_loop"],
             corners=tuple(Corner(**c) for c in header["corners"]), source=header["source"],
-            source_sha256=header["source_sha256"], synthetic=header["synthetic"], **arrays,
+            source_sha256=header["source_sha256"], synthetic=header["synthetic"],
+            build=header.get("build", {}), **arrays,
         )
 
 

@@ -3,13 +3,14 @@
 Raw GPS has 3-5 m of noise, so curvature taken from the points directly is useless. The
 pipeline here:
 
-1. clean: drop fixes without a position, out-of-range coordinates, pause points (fixes
-   closer than `min_step_m` to the last kept one, or with a device speed near zero) and
-   GPS spikes (a fix, or a short run of fixes, that jumps away and comes back);
-2. project to ENU anchored at the first fix (pymap3d);
-3. detect a closed loop (end within `closed_loop_gap_m` of the start on a long track) and
-   treat it periodically: the data is wrapped around the seam before smoothing, so the
-   centre line has no kink or gap where the lap closes;
+1. clean (`track_clean`): drop fixes without a position, standstill (device speed near
+   zero while the GPS does not move either), pause clusters and GPS spikes; ENU at the
+   first moving fix (pymap3d);
+2. trim to the race (`course_trim`): `--start`/`--finish` overrides, a route, or the
+   post-finish U-turn heuristic;
+3. detect a closed loop (`track_clean.close_loop`) and treat it periodically: the data
+   is wrapped around the seam before smoothing, so the centre line has no kink or gap
+   where the lap closes;
 4. fit x(u), y(u) with cubic smoothing splines (`scipy.interpolate.make_smoothing_spline`,
    three O(n) passes): two with a moderate smoothing length that locate the corners and
    re-parametrise each fix by its foot point on the curve, then one whose smoothing length
@@ -23,7 +24,11 @@ pipeline here:
    then a Gaussian filter on the heading (spreads the curvature bursts that the last few
    fixes of noise leave in a corner) and positions re-integrated from it;
 6. fit altitude z(s) with a much longer smoothing length (barometric and GPS altitude
-   jitter by metres, which would make metre-scale grades absurd).
+   jitter by metres, which would make metre-scale grades absurd), from the source chosen
+   in `course_elevation` (device, smoothed, route or a mix), with its checks;
+7. road width: `GPS_ROAD_WIDTH_M` unless set for the course or per stretch.
+
+What trimming, the elevation choice and the width did is kept in `Course.build`.
 
 A cubic smoothing spline with weights w_i and penalty lam has a local equivalent-kernel
 bandwidth h = (lam / (w * rho)) ** 0.25, rho = points per metre (Silverman 1984); the
@@ -32,16 +37,19 @@ weights below are set from that relation to get a chosen smoothing length in met
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import pymap3d
 from scipy.interpolate import BSpline, make_smoothing_spline
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d, uniform_filter1d
 
-from itt_planner.course import Course, GeoOrigin
+from itt_planner.course import GPS_ROAD_WIDTH_M, Course
+from itt_planner.course_elevation import ElevationOptions, build_profile
+from itt_planner.course_trim import TrimOptions, trim_track
 from itt_planner.errors import CourseError
+from itt_planner.track_clean import CleanSettings, Track, clean_fixes, close_loop
 from itt_planner.track_files import Recording, read_recording
 
 
@@ -51,13 +59,7 @@ class FitSettings:
 
     Attributes:
         ds_m: grid step of the resulting course.
-        min_step_m: a fix closer than this to the last kept fix is a pause point.
-        stopped_speed_mps: fixes whose device speed is below this are dropped (GPS wanders
-            while the rider stands still).
-        max_speed_mps: implied speeds above this mark a GPS jump (no bike does 30 m/s on
-            a course that matters here; Zwift descents top out below it).
-        spike_window: a jump that comes back within this many fixes is a spike and is
-            removed; one that does not is a real gap and is kept.
+        clean: the cleaning of the fixes (`track_clean`).
         straight_scale_m: smoothing length on straights.
         min_scale_m: shortest smoothing length, in the tightest corners.
         radius_scale: smoothing length as a fraction of the local radius in corners.
@@ -72,15 +74,10 @@ class FitSettings:
         drift_scale_m: smoothing length of the position correction after that filter.
         altitude_scale_m: smoothing length of the altitude profile.
         max_grade: steeper stretches of the fitted profile are smoothed harder.
-        closed_loop_gap_m: a track that ends this close to its start is a closed loop...
-        closed_loop_min_length_m: ... if it is at least this long.
     """
 
     ds_m: float = 1.0
-    min_step_m: float = 2.0
-    stopped_speed_mps: float = 0.5
-    max_speed_mps: float = 30.0
-    spike_window: int = 30
+    clean: CleanSettings = CleanSettings()
     straight_scale_m: float = 30.0
     min_scale_m: float = 10.0
     radius_scale: float = 0.42
@@ -92,201 +89,102 @@ class FitSettings:
     drift_scale_m: float = 100.0
     altitude_scale_m: float = 60.0
     max_grade: float = 0.25
-    closed_loop_gap_m: float = 30.0
-    closed_loop_min_length_m: float = 1000.0
 
 
 @dataclass(frozen=True)
-class Track:
-    """Cleaned ENU fixes (m) with the geodetic origin and the closed-loop flag."""
+class WidthStretch:
+    """The full road width (m) from `from_m` to `to_m` along the course."""
 
-    x_m: np.ndarray
-    y_m: np.ndarray
-    z_m: np.ndarray
-    origin: GeoOrigin
-    closed_loop: bool
+    from_m: float
+    to_m: float
+    width_m: float
 
 
-def fit_course_file(path: str | Path, settings: FitSettings = FitSettings()) -> Course:
+@dataclass(frozen=True)
+class CourseOptions:
+    """What a GPS course is made of, beyond the track: the race's extent, the altitude
+    source, the road width (`road_width_m`, overridden per stretch by `widths`)."""
+
+    trim: TrimOptions = TrimOptions()
+    elevation: ElevationOptions = ElevationOptions()
+    road_width_m: float = GPS_ROAD_WIDTH_M
+    widths: tuple[WidthStretch, ...] = ()
+
+
+def fit_course_file(path: str | Path, settings: FitSettings = FitSettings(),
+                    options: CourseOptions = CourseOptions()) -> Course:
     """Read a GPX/TCX/FIT/CSV file and fit a course to it.
 
     Raises:
         CourseError: unreadable file, or not enough usable points (names the file).
     """
-    return fit_course(read_recording(path), settings)
+    return fit_course(read_recording(path), settings, options)
 
 
-def fit_course(rec: Recording, settings: FitSettings = FitSettings()) -> Course:
-    """Fit a smooth course to a GPS recording.
+def fit_course(rec: Recording, settings: FitSettings = FitSettings(),
+               options: CourseOptions = CourseOptions()) -> Course:
+    """Fit a smooth course to a GPS recording (trimmed, altitude checked, widths set).
 
     Raises:
-        CourseError: too few usable points, or all points identical (names the file).
+        CourseError: too few usable points, all points identical, an invalid trim, width
+            or elevation choice (names the file).
     """
-    track = clean_track(rec, settings)
+    track = clean_fixes(rec, settings.clean)
+    track, trim = trim_track(track, rec, options.trim)
+    track = close_loop(track, settings.clean)
     s, x, y, theta, kappa, s_pts = _fit_plan(track, settings)
-    z = _fit_altitude(s_pts, track.z_m, float(s[-1]), track.closed_loop, settings)
+    length = float(s[-1])
+
+    def fit(sp: np.ndarray, zp: np.ndarray, scale_m: float) -> np.ndarray:
+        st = replace(settings, altitude_scale_m=scale_m)
+        return _fit_altitude(sp, zp, length, track.closed_loop, st)(s)
+
+    try:
+        z, elevation = build_profile(s, x, y, track.origin, (s_pts, track.z_m),
+                                     options.trim.route, options.elevation, fit,
+                                     settings.altitude_scale_m)
+        width, width_report = _road_width(s, options)
+    except CourseError as err:
+        raise CourseError(f"{rec.path}: {err}") from None
+    trim_report = trim.as_dict()
+    trim_report["finish_m"] = round(trim.start_m + float(track.distance_m[-1]), 1)
+    trim_report["moving_with_speed_0"] = track.moving_speed0
+    if track.moving_speed0:
+        trim_report["notes"].append(
+            f"{track.moving_speed0} fixes kept although the device speed read 0: the GPS "
+            "moved (a wheel sensor lags a standing start)")
+    build = {"trim": trim_report, "elevation": elevation, "road_width": width_report,
+             "warnings": list(elevation["warnings"])}
     return Course.from_centerline(
-        rec.path.name.split(".")[0], x, y, z(s), origin=track.origin,
+        rec.path.name.split(".")[0], x, y, z, origin=track.origin,
         closed_loop=track.closed_loop, ds_m=settings.ds_m, theta_rad=theta, kappa_per_m=kappa,
-        source=str(rec.path), source_sha256=rec.sha256,
+        width_left_m=width / 2, width_right_m=width / 2,
+        source=str(rec.path), source_sha256=rec.sha256, build=build,
     )
 
 
-# ---- cleaning ---------------------------------------------------------------------------
-def clean_track(rec: Recording, settings: FitSettings = FitSettings()) -> Track:
-    """Usable fixes in ENU: no NaN, no pause clusters, no GPS spikes.
+def _road_width(s: np.ndarray, options: CourseOptions) -> tuple[np.ndarray, dict[str, Any]]:
+    """Full road width at each grid point, and how it was set.
 
     Raises:
-        CourseError: fewer than 3 usable points, or no movement at all.
+        CourseError: a width that is not positive, or a stretch outside the course.
     """
-    where = str(rec.path)
-    lat, lon = np.asarray(rec.lat_deg, float), np.asarray(rec.lon_deg, float)
-    ok = np.isfinite(lat) & np.isfinite(lon) & (np.abs(lat) <= 90) & (np.abs(lon) <= 180)
-    # (0, 0) is what some devices write before the first fix.
-    ok &= ~((lat == 0) & (lon == 0))
-    if rec.speed_mps is not None:
-        ok &= ~(np.nan_to_num(rec.speed_mps, nan=np.inf) < settings.stopped_speed_mps)
-    if ok.sum() < 3:
-        raise CourseError(f"{where}: only {int(ok.sum())} usable GPS points (need at least 3)")
-    ele = np.asarray(rec.ele_m, float)[ok]
-    if np.all(np.isnan(ele)):
-        ele = np.zeros_like(ele)  # a flat course is the honest reading of "no altitude"
-    else:
-        good = np.isfinite(ele)
-        ele = np.interp(np.arange(len(ele)), np.flatnonzero(good), ele[good])
-    lat, lon = lat[ok], lon[ok]
-    origin = GeoOrigin(float(lat[0]), float(lon[0]), float(ele[0]))
-    x, y, _ = pymap3d.geodetic2enu(lat, lon, np.full_like(lat, origin.alt_m),
-                                   origin.lat_deg, origin.lon_deg, origin.alt_m)
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    t = None if rec.time_s is None else np.asarray(rec.time_s, float)[ok]
-
-    keep = _decimate(x, y, settings.min_step_m)
-    if keep.sum() < 3:
-        raise CourseError(f"{where}: all GPS points are identical (or within "
-                          f"{settings.min_step_m} m of each other): no track to fit")
-    x, y, ele = x[keep], y[keep], ele[keep]
-    t = None if t is None else t[keep]
-    keep = _drop_spikes(x, y, t, settings)
-    x, y, ele = x[keep], y[keep], ele[keep]
-    if len(x) < 3:
-        raise CourseError(f"{where}: fewer than 3 GPS points left after removing jumps")
-
-    step = np.hypot(np.diff(x), np.diff(y))
-    length = float(step.sum())
-    gap = float(np.hypot(x[-1] - x[0], y[-1] - y[0]))
-    closed = gap <= settings.closed_loop_gap_m and length >= settings.closed_loop_min_length_m
-    if length >= settings.closed_loop_min_length_m:
-        # A lap file often runs a few fixes past the line. Cut at the last fix near the start
-        # that is still before it (along the start direction), or the closing chord would
-        # run backwards and make a U-turn at the seam.
-        far = np.flatnonzero(np.hypot(x - x[0], y - y[0]) > settings.closed_loop_gap_m)
-        ahead = (np.array([x[far[0]] - x[0], y[far[0]] - y[0]]) if len(far)
-                 else np.array([1.0, 0.0]))
-        ahead /= np.linalg.norm(ahead)
-        tail = len(x) - 1 - np.flatnonzero(np.cumsum(step[::-1]) < 3 * settings.closed_loop_gap_m)
-        tail = np.concatenate([[len(x) - 1], tail])
-        dist = np.hypot(x[tail] - x[0], y[tail] - y[0])
-        before = (x[tail] - x[0]) * ahead[0] + (y[tail] - y[0]) * ahead[1] < 0
-        # `tail` runs backwards from the last fix; in ride order, the first stretch of fixes
-        # that reaches the start from before it is the arrival. What follows it (circling
-        # at the finish, the ride home) is not course, and a cut there would close the lap
-        # with a turn-around only a few metres wide.
-        cand = np.flatnonzero((dist <= settings.closed_loop_gap_m) & before)[::-1]
-        if len(cand) and _arrives_like_start(x, y, int(tail[cand[0]]), ahead, settings):
-            run = cand[: int(np.argmax(np.diff(cand) != -1)) + 1] if np.any(
-                np.diff(cand) != -1) else cand
-            best = int(tail[run[np.argmin(dist[run])]])
-            closed = True
-            x, y, ele = x[: best + 1], y[: best + 1], ele[: best + 1]
-        elif closed and not _arrives_like_start(x, y, len(x) - 1, ahead, settings):
-            # Out along a road and back along it to the start (a ride from home): joining
-            # the ends would be a U-turn at the seam, so this is a point-to-point course.
-            closed = False
-    if closed:
-        # The end fix that coincides with the start would be a zero-length step across the seam.
-        while len(x) > 3 and np.hypot(x[-1] - x[0], y[-1] - y[0]) < settings.min_step_m:
-            x, y, ele = x[:-1], y[:-1], ele[:-1]
-    return Track(x, y, ele, origin, closed)
-
-
-def _arrives_like_start(x: np.ndarray, y: np.ndarray, end: int, ahead: np.ndarray,
-                        settings: FitSettings) -> bool:
-    """True if the track arrives at fix `end` heading within 90 deg of the start direction.
-
-    The arrival direction is the chord from the last fix `closed_loop_gap_m` or more
-    before `end` (so GPS jitter at the line does not decide it).
-    """
-    far = np.flatnonzero(np.hypot(x[:end] - x[end], y[:end] - y[end])
-                         > settings.closed_loop_gap_m)
-    if not len(far):
-        return True
-    arrive = np.array([x[end] - x[far[-1]], y[end] - y[far[-1]]])
-    return float(arrive @ ahead) > 0.0
-
-
-def _decimate(x: np.ndarray, y: np.ndarray, min_step_m: float) -> np.ndarray:
-    """Keep a fix only if it is at least `min_step_m` from the last kept one.
-
-    Removes duplicates and the wander of a paused GPS without touching moving fixes
-    (1 Hz at racing speed is 5-20 m apart).
-    """
-    keep = np.zeros(len(x), dtype=bool)
-    keep[0] = True
-    last = 0
-    # Fast path: a vectorised test finds the points that are trivially far enough; the loop
-    # only needs to look at the rest (pauses), which keeps 100 km tracks in milliseconds.
-    step = np.hypot(np.diff(x), np.diff(y))
-    if np.all(step >= min_step_m):
-        keep[:] = True
-        return keep
-    x2, y2 = x.tolist(), y.tolist()
-    lim = min_step_m * min_step_m
-    for i in range(1, len(x)):
-        dx, dy = x2[i] - x2[last], y2[i] - y2[last]
-        if dx * dx + dy * dy >= lim:
-            keep[i] = True
-            last = i
-    return keep
-
-
-def _drop_spikes(x: np.ndarray, y: np.ndarray, t: np.ndarray | None,
-                 settings: FitSettings) -> np.ndarray:
-    """Remove fixes that jump away and come back (GPS multipath), keep real gaps.
-
-    A step is a jump if its implied speed exceeds `max_speed_mps` (with stamps) or if it
-    is ten times the typical step and over 100 m (without). If a fix within the next
-    `spike_window` fixes is plausibly reachable from the fix before the jump, everything
-    in between is a spike; otherwise the jump is a real gap (pause, tunnel) and is kept.
-    """
-    n = len(x)
-    keep = np.ones(n, dtype=bool)
-    step = np.hypot(np.diff(x), np.diff(y))
-    typical = float(np.median(step)) if len(step) else 0.0
-
-    def plausible(a: int, b: int) -> bool:
-        dist = float(np.hypot(x[b] - x[a], y[b] - y[a]))
-        if t is not None and np.isfinite(t[a]) and np.isfinite(t[b]):
-            return dist <= settings.max_speed_mps * max(t[b] - t[a], 1.0) + 10.0
-        return dist <= max(10.0 * typical * (b - a), 100.0)
-
-    last = 0
-    i = 1
-    while i < n:
-        if plausible(last, i):
-            last = i
-            i += 1
-            continue
-        back = next((j for j in range(i + 1, min(i + 1 + settings.spike_window, n))
-                     if plausible(last, j)), None)
-        if back is None:  # a real gap: accept the new position
-            last = i
-            i += 1
-        else:
-            keep[i:back] = False
-            last = back
-            i = back + 1
-    return keep
+    width = np.full(len(s), float(options.road_width_m))
+    if not options.road_width_m > 0:
+        raise CourseError(f"road width {options.road_width_m} m: must be positive")
+    for w in options.widths:
+        if not (w.width_m > 0 and 0 <= w.from_m < w.to_m):
+            raise CourseError(f"road width stretch {w}: need 0 <= from_m < to_m, width_m > 0")
+        if w.from_m > s[-1]:
+            raise CourseError(f"road width stretch {w}: starts after the course ends "
+                              f"({s[-1]:.0f} m)")
+        width[(s >= w.from_m) & (s <= w.to_m)] = w.width_m
+    report = {"default_m": float(options.road_width_m),
+              "default_is": ("GPS_ROAD_WIDTH_M (closed-road time trial, see course.py)"
+                             if options.road_width_m == GPS_ROAD_WIDTH_M else "set"),
+              "stretches": [asdict(w) for w in options.widths],
+              "min_m": float(width.min()), "max_m": float(width.max())}
+    return width, report
 
 
 # ---- plan view fit -----------------------------------------------------------------------
