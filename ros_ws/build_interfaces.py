@@ -91,11 +91,23 @@ def _run(cmd: list[str], env: dict[str, str], log: Path) -> None:
                          f"full log: {log}")
 
 
-def build(prefix: Path) -> None:
-    """Configure, build and install itt_msgs into `prefix` with CMake (Ninja if present)."""
+def cmake_args() -> list[str]:
+    """CMake cache arguments that build a rosidl package against the ROS 2 wheels of this
+    interpreter (also what `colcon build --cmake-args` needs for the whole workspace)."""
     import numpy  # the wheels' rosidl_generator_py compiles against it
 
     python_include = sysconfig.get_paths()["include"]
+    return ["-DCMAKE_BUILD_TYPE=Release", "-DBUILD_TESTING=OFF",
+            f"-DPython3_EXECUTABLE={sys.executable}", "-DPython3_FIND_VIRTUALENV=ONLY",
+            f"-DPython3_INCLUDE_DIR={python_include}",
+            f"-DPython3_NumPy_INCLUDE_DIR={numpy.get_include()}",
+            f"-DCMAKE_PROJECT_INCLUDE={INCLUDES_FIX}",
+            f"-DITT_PYTHON_INCLUDE_DIR={python_include}",
+            f"-DITT_NUMPY_INCLUDE_DIR={numpy.get_include()}"]
+
+
+def build(prefix: Path) -> None:
+    """Configure, build and install itt_msgs into `prefix` with CMake (Ninja if present)."""
     build_dir = STATE_DIR / "cmake"
     shutil.rmtree(build_dir, ignore_errors=True)  # a fresh tree: no stale cache after upgrades
     build_dir.mkdir(parents=True)
@@ -107,14 +119,8 @@ def build(prefix: Path) -> None:
         p for p in [str(prefix), env.get("AMENT_PREFIX_PATH", "")] if p)
     generator = ["-G", "Ninja"] if shutil.which("ninja") else []
     _run(["cmake", "-S", str(PACKAGE), "-B", str(build_dir), *generator,
-          f"-DCMAKE_INSTALL_PREFIX={prefix}", f"-DCMAKE_PREFIX_PATH={prefix}",
-          "-DCMAKE_BUILD_TYPE=Release", "-DBUILD_TESTING=OFF",
-          f"-DPython3_EXECUTABLE={sys.executable}", "-DPython3_FIND_VIRTUALENV=ONLY",
-          f"-DPython3_INCLUDE_DIR={python_include}",
-          f"-DPython3_NumPy_INCLUDE_DIR={numpy.get_include()}",
-          f"-DCMAKE_PROJECT_INCLUDE={INCLUDES_FIX}",
-          f"-DITT_PYTHON_INCLUDE_DIR={python_include}",
-          f"-DITT_NUMPY_INCLUDE_DIR={numpy.get_include()}"], env, log)
+          f"-DCMAKE_INSTALL_PREFIX={prefix}", f"-DCMAKE_PREFIX_PATH={prefix}", *cmake_args()],
+         env, log)
     _run(["cmake", "--build", str(build_dir), "--parallel", str(os.cpu_count() or 1)], env, log)
     _run(["cmake", "--install", str(build_dir)], env, log)
 
