@@ -18,6 +18,7 @@ from itt_planner.cli import node as _node  # noqa: F401,E402
 from itt_planner.cli import plan as _plan  # noqa: F401,E402
 from itt_planner.cli import bags as _bags  # noqa: F401,E402
 from itt_planner.cli import calibrate as _calibrate  # noqa: F401,E402
+from itt_planner.cli import sweep as _sweep  # noqa: F401,E402
 
 
 def main() -> None:
