@@ -25,7 +25,8 @@ Entities (display units, at the edge: km/h, degrees, kJ, ms, named in the path):
     world/target_line           LineStrips3D: planned line over the horizon (per advice)
     world/rider                 Points3D: estimated position of the rider
     world/path/seg_NNNN         LineStrips3D: the rider's estimated path (a point per 5 m)
-    plots/power/{actual,target,critical,plan}          W
+    plots/power/{actual,target,critical,plan}          W ("critical": the CP in use, from
+                                                       each advice: refits show as steps)
     plots/speed_kmh/{actual,plan}                      km/h
     plots/w_prime_kj/{actual,finish,plan}              kJ ("finish": projected at the line)
     plots/lean_deg/plan                                deg
@@ -33,12 +34,16 @@ Entities (display units, at the edge: km/h, degrees, kJ, ms, named in the path):
     plots/solve_time_ms/replan                         ms per receding-horizon solve
     elevation/profile           Scalars on distance_m: z(s) of the course
     elevation/rider             Scalars (points): z at the rider's position
-    log/advice                  TextLog: advice changes (target, status, fallback)
+    log/advice                  TextLog: advice changes (target, cue, status, fallback)
+    log/belief                  TextLog: CP refits and plan adoptions, as the advice
+                                reports them (`cp_in_use_w`, `plan_version`)
     log/diagnostics             TextLog: diagnostic changes (solver, inputs, fallbacks)
     log/inputs                  TextLog: inputs the recorder could not plot (NaN, inf)
 
 `*/plan` series hold the full-course plan against distance (one `send_columns` call
-each) and, on ride_time, the plan sampled at the rider's position every 5 m.
+each) and, on ride_time, the plan sampled at the rider's position every 5 m. The plan
+drawn is the one the recorder was built with until `log_plan` is given the plan in
+force after an adoption (the advice names its version; the plan's arrays are not in it).
 """
 
 from __future__ import annotations
@@ -49,7 +54,7 @@ import threading
 import numpy as np
 import rerun as rr
 
-from itt_planner.advice import Advice, Diagnostic, Level
+from itt_planner.advice import Advice, Cue, Diagnostic, Level
 from itt_planner.course import Course
 from itt_planner.plan import Plan
 from itt_planner.rerun_blueprint import (
@@ -151,7 +156,8 @@ class RideRecorder:
     Args:
         rec: the recording (`open_recording`); the recorder never uses Rerun's global one.
         course: the course the ride is on.
-        rider: the rider (critical power line).
+        rider: the rider as first believed (the critical-power line until an advice
+            names the CP in use).
         plan: the full-course plan, if any (planned curves and line).
     """
 
@@ -169,6 +175,9 @@ class RideRecorder:
         self._path = _Trail(TRACK_SEGMENT)
         self._last_path_s: float | None = None
         self._last_advice: Advice | None = None
+        #: (CP in use, plan version) of the last advice: their changes are logged.
+        self._belief: tuple[float, int] | None = None
+        self._plan_version = 0
         self._diag_seen: dict[str, tuple[Level, str]] = {}
         #: Inputs not plotted because they were not finite.
         self.skipped_inputs = 0
@@ -255,6 +264,19 @@ class RideRecorder:
         )
         if self.plan is not None:
             self._log_plan(self.plan)
+
+    def log_plan(self, plan: Plan, version: int) -> None:
+        """A new plan in force (`PacingEngine.plan` after an adoption, `plan_version`):
+        its curves replace the old plan's from the rider's position on distance_m, and
+        the ride-time samples follow it from now on."""
+        if not self.enabled:
+            return
+        with self._lock:
+            if version == self._plan_version:
+                return
+            self.plan = plan
+            self._plan_version = version
+            self._log_plan(plan)
 
     def _log_plan(self, plan: Plan) -> None:
         rec = self.rec
@@ -385,8 +407,30 @@ class RideRecorder:
             if change is not None:
                 level = rr.TextLogLevel.WARN if advice.fallback else rr.TextLogLevel.INFO
                 rec.log("log/advice", rr.TextLog(change, level=level))
+            belief = self._belief_change(advice)
+            if belief is not None:
+                rec.log("log/belief", rr.TextLog(belief[0], level=belief[1]))
             self._set_time(advice.stamp_s, None)
-            rec.log("plots/power/critical", rr.Scalars(self.rider.critical_power_w))
+            cp = (advice.cp_in_use_w if math.isfinite(advice.cp_in_use_w)
+                  else self.rider.critical_power_w)
+            rec.log("plots/power/critical", rr.Scalars(cp))
+
+    def _belief_change(self, advice: Advice) -> tuple[str, str] | None:
+        """A text-log line (and its level) when the advice's CP in use or plan version
+        differs from the last advice's: a refit (WARN) or a plan adoption (INFO)."""
+        cp = advice.cp_in_use_w
+        now = (cp, int(advice.plan_version))
+        last, self._belief = self._belief, now
+        if last is None or not math.isfinite(cp):
+            return None
+        where = f"at {advice.state.s_m / 1000:.2f} km"
+        if math.isfinite(last[0]) and cp != last[0]:
+            return (f"CP in use {last[0]:.0f} -> {cp:.0f} W {where} (refit; see "
+                    "itt_planner/rider_model)", rr.TextLogLevel.WARN)
+        if now[1] != last[1]:
+            return (f"plan {now[1]} adopted {where} (the rest of the course re-solved for "
+                    f"CP {cp:.0f} W)", rr.TextLogLevel.INFO)
+        return None
 
     def _advice_change(self, advice: Advice) -> str | None:
         """A text-log line when the advice changed enough to tell the team car, else None."""
@@ -395,6 +439,7 @@ class RideRecorder:
             last is None
             or advice.fallback != last.fallback
             or advice.solver_status != last.solver_status
+            or advice.cue != last.cue
             or abs(advice.target_power_w - last.target_power_w) >= ADVICE_CHANGE_W
         )
         if not changed:
@@ -404,7 +449,12 @@ class RideRecorder:
         finish = advice.predicted_finish_s
         finish_txt = (f"{int(finish // 60)}:{finish % 60:04.1f}" if math.isfinite(finish)
                       else "n/a")
-        return (f"target {advice.target_power_w:.0f} W{was} at {advice.state.s_m / 1000:.2f} km;"
+        cue = Cue(advice.cue).name.lower()
+        corner = (f", corner in {advice.corner_distance_m:.0f} m at "
+                  f"{advice.corner_speed_mps * MPS_TO_KMH:.0f} km/h"
+                  if math.isfinite(advice.corner_distance_m) else "")
+        return (f"{cue} {advice.target_power_w:.0f} W{was}{corner} at "
+                f"{advice.state.s_m / 1000:.2f} km;"
                 f" finish {finish_txt}, W' at finish {advice.w_prime_finish_j / 1000:.1f} kJ;"
                 f" {advice.solver_status}, {advice.solve_time_s * 1000:.0f} ms"
                 + ("; FALLBACK (last good plan)" if advice.fallback else ""))

@@ -41,7 +41,9 @@ class RideTrace:
     Attributes:
         power_s_m, speed_s_m, gps_s_m: distance of each power / speed sample and GPS fix
             (see module doc).
-        advice_*: one entry per advice, in stamp order.
+        advice_*: one entry per advice, in stamp order; `cp_in_use_w`, `plan_version`
+            and `cue` are what each advice says the engine planned with and told the
+            rider (`belief_events` lists the refits and plan adoptions among them).
         metadata: the log's `itt_replay` record (input, course, rider, model ...), or {}.
     """
 
@@ -66,6 +68,9 @@ class RideTrace:
     fallback: np.ndarray
     solver_status: tuple[str, ...]
     metadata: dict[str, str]
+    cp_in_use_w: np.ndarray
+    plan_version: np.ndarray
+    cue: np.ndarray
 
     @property
     def duration_s(self) -> float:
@@ -140,7 +145,41 @@ def load_ride_trace(path: str | Path) -> RideTrace:
         w_prime_finish_j=np.array([a.w_prime_finish_j for a in advice]),
         fallback=np.array([a.fallback for a in advice]),
         solver_status=tuple(a.solver_status for a in advice),
-        metadata=dict(reader.metadata.get(REPLAY_METADATA, {})))
+        metadata=dict(reader.metadata.get(REPLAY_METADATA, {})),
+        cp_in_use_w=np.array([a.cp_in_use_w for a in advice]),
+        plan_version=np.array([a.plan_version for a in advice], dtype=int),
+        cue=np.array([int(a.cue) for a in advice], dtype=int))
+
+
+@dataclass(frozen=True)
+class BeliefEvent:
+    """A change in what the engine planned with, as the advice reports it: a CP refit
+    (`kind` "refit", CP before and after) or a plan adoption (`kind` "plan", the new
+    version in `plan_version`)."""
+
+    kind: str
+    t_s: float
+    s_m: float
+    cp_before_w: float
+    cp_after_w: float
+    plan_version: int
+
+
+def belief_events(trace: RideTrace) -> list[BeliefEvent]:
+    """Every CP refit and plan adoption of a replayed ride, in order (from the advice's
+    `cp_in_use_w` and `plan_version`, not from the rider or plan the report assumes)."""
+    out = []
+    cp, version = trace.cp_in_use_w, trace.plan_version
+    for i in range(1, len(cp)):
+        if cp[i] != cp[i - 1] and np.isfinite(cp[i]) and np.isfinite(cp[i - 1]):
+            out.append(BeliefEvent("refit", float(trace.advice_t_s[i]),
+                                   float(trace.advice_s_m[i]), float(cp[i - 1]), float(cp[i]),
+                                   int(version[i])))
+        if version[i] != version[i - 1]:
+            out.append(BeliefEvent("plan", float(trace.advice_t_s[i]),
+                                   float(trace.advice_s_m[i]), float(cp[i - 1]), float(cp[i]),
+                                   int(version[i])))
+    return out
 
 
 def _distance_at(t_s: np.ndarray, state_t_s: np.ndarray, state_s_m: np.ndarray,

@@ -22,6 +22,8 @@ ORIGIN = GeoOrigin(lat_deg=45.438, lon_deg=10.992, alt_m=60.0)
 T0_S = 1_763_800_000.0  # a POSIX stamp (2025-11-22)
 RIDER: Rider = PRESETS["paper"]
 G = 9.81
+#: The CP the synthetic ride's advice says was refitted (`make_ride`).
+REFIT_CP_W = 0.95 * RIDER.critical_power_w
 
 
 def make_course() -> Course:
@@ -67,7 +69,9 @@ def make_ride(course: Course, plan: Plan, *, rate_hz: float = 4.0
     """The ride along the plan, as the engine would emit it, in stamp order.
 
     Power and speed at `rate_hz`, GPS and rider states at 1 Hz, advice at 1 Hz with a step
-    in target power half-way, a solver fallback at 40 s, diagnostics with one warning.
+    in target power half-way, a solver fallback at 40 s, diagnostics with one warning; the
+    advice says CP was refitted to `REFIT_CP_W` at 60 % of the ride and a re-solved plan
+    (version 1) adopted at 80 %.
     """
     events: list = []
     duration = plan.finish_time_s
@@ -86,7 +90,10 @@ def make_ride(course: Course, plan: Plan, *, rate_hz: float = 4.0
                            float(plan.at("power_w", s)), float(plan.at("w_prime_j", s)), t)
         events.append(state)
         events.append(make_advice(course, plan, state, bump_w=25.0 if t > duration / 2 else 0.0,
-                                  fallback=40.0 <= t < 42.0))
+                                  fallback=40.0 <= t < 42.0,
+                                  cp_in_use_w=REFIT_CP_W if t >= 0.6 * duration
+                                  else RIDER.critical_power_w,
+                                  plan_version=int(t >= 0.8 * duration)))
         level = Level.WARN if 30.0 <= t < 35.0 else Level.OK
         events.append([
             Diagnostic(T0_S + t, "solver", level,
@@ -97,7 +104,8 @@ def make_ride(course: Course, plan: Plan, *, rate_hz: float = 4.0
 
 
 def make_advice(course: Course, plan: Plan, state: RiderState, *, bump_w: float = 0.0,
-                fallback: bool = False, horizon_m: float = 300.0) -> Advice:
+                fallback: bool = False, horizon_m: float = 300.0,
+                cp_in_use_w: float = RIDER.critical_power_w, plan_version: int = 0) -> Advice:
     """Advice over `horizon_m` from `state`, taken from the plan (+ `bump_w` of power)."""
     hs = np.linspace(state.s_m, min(state.s_m + horizon_m, course.length_m), 61)
     hn = plan.at("n_m", hs)
@@ -112,4 +120,5 @@ def make_advice(course: Course, plan: Plan, state: RiderState, *, bump_w: float 
         predicted_finish_s=plan.finish_time_s, w_prime_now_j=state.w_prime_j,
         w_prime_finish_j=float(plan.w_prime_j[-1]), solver_status="Solve_Succeeded",
         iterations=12, solve_time_s=0.05 + 0.01 * math.sin(state.elapsed_s), fallback=fallback,
+        cp_in_use_w=cp_in_use_w, plan_version=plan_version,
     )

@@ -18,6 +18,7 @@ from PIL import Image
 from synthetic_ride import RIDER, make_course, make_plan
 from typer.testing import CliRunner
 
+from itt_planner.advice import Cue
 from itt_planner.cli import app
 from itt_planner.course import Course
 from itt_planner.errors import IttError
@@ -25,7 +26,7 @@ from itt_planner.plan import Plan
 from itt_planner.report import render_html, rider_from_plan, summary, write_report
 from itt_planner.replay import replay_ride
 from itt_planner.session import SessionConfig
-from itt_planner.ride_report import load_ride_trace
+from itt_planner.ride_report import belief_events, load_ride_trace
 from itt_planner.ridelog import read_ride_log
 
 DEMO_BAG = Path(__file__).parents[1] / "bags" / "typical_verona-like.mcap"
@@ -174,6 +175,14 @@ def test_ride_trace_places_samples_by_distance(replayed: tuple) -> None:
     assert np.all(np.diff(trace.power_s_m) >= 0) and trace.power_s_m[-1] > 16_700
     assert len(trace.power_w) == len(trace.power_s_m) == len(trace.gps_s_m)
     assert trace.metadata["input"] == str(DEMO_BAG)
+    # What the engine planned with comes from the advice: the typical rider's CP (no
+    # refit on this nominal ride) and the first plan, cues pedal / coast / brake / climb.
+    n = len(trace.advice_t_s)
+    assert trace.cp_in_use_w.shape == trace.plan_version.shape == trace.cue.shape == (n,)
+    events = belief_events(trace)
+    assert sum(e.kind == "refit" for e in events) == int(np.sum(np.diff(trace.cp_in_use_w) != 0))
+    assert sum(e.kind == "plan" for e in events) == int(np.sum(np.diff(trace.plan_version) != 0))
+    assert set(np.unique(trace.cue)) <= {int(c) for c in Cue}
 
 
 def test_ride_report_png(replayed: tuple, tmp_path: Path) -> None:

@@ -10,7 +10,7 @@ import pyarrow as pa
 import pytest
 import rerun as rr
 from rerun.chunk import ChunkStore, RrdReader
-from synthetic_ride import RIDER, T0_S, make_course, make_plan, make_ride
+from synthetic_ride import REFIT_CP_W, RIDER, T0_S, make_course, make_plan, make_ride
 
 from itt_planner.advice import Advice, Diagnostic
 from itt_planner.errors import IttError
@@ -180,7 +180,9 @@ def test_advice_series_and_horizon_lines(ride: dict) -> None:
     _, target = scalars(store, "ride_time", "/plots/power/target")
     np.testing.assert_allclose(target, [a.target_power_w for a in advice])
     _, cp = scalars(store, "ride_time", "/plots/power/critical")
-    assert len(cp) == len(advice) and set(cp) == {RIDER.critical_power_w}
+    # The CP line is the CP in use each advice names (a refit shows as a step).
+    np.testing.assert_allclose(cp, [a.cp_in_use_w for a in advice])
+    assert set(cp) == {RIDER.critical_power_w, REFIT_CP_W}
     _, finish = scalars(store, "ride_time", "/plots/w_prime_kj/finish")
     np.testing.assert_allclose(finish, [a.w_prime_finish_j / 1000 for a in advice])
     _, solve = scalars(store, "ride_time", "/plots/solve_time_ms/replan")
@@ -205,6 +207,11 @@ def test_text_log_has_advice_changes_and_diagnostic_changes(ride: dict) -> None:
     # solver ok -> overran -> ok, inputs ok once: 4 lines, not one per second.
     assert len(diag) == 4
     assert levels.count("WARN") == 1 and "overran" in diag[levels.index("WARN")]
+    # The refit and the plan adoption the advice reports, once each.
+    belief = texts(store, "/log/belief")
+    assert len(belief) == 2
+    assert f"{RIDER.critical_power_w:.0f} -> {REFIT_CP_W:.0f} W" in belief[0]
+    assert "plan 1 adopted" in belief[1]
 
 
 def test_track_and_path_in_segments(ride: dict) -> None:
