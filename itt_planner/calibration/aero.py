@@ -7,86 +7,87 @@ rolling resistance and air drag (model.md E3, still air, no braking):
 
 so the height the power "explains" (the virtual elevation) is
 
-    dh_ve = (eta P dt - d(m v^2 / 2)) / (m g) - crr v dt - CdA rho v^3 dt / (2 m g).
+    dh_ve = (eta P dt - d(m v^2 / 2)) / (m g) - crr v dt
+            - CdA rho (v - u)|v - u| v dt / (2 m g),   u = w_E cos(psi) + w_N sin(psi)
 
-Summed from the start of a stretch and compared with the recorded altitude plus a free
-offset per stretch, this is LINEAR in (crr, CdA): ordinary least squares after
-subtracting each stretch's mean. Kinetic energy telescopes, so speed noise enters only
+(`u`: the wind along the GPS heading `psi`, one steady wind per ride, as E3 projects
+it). Summed from the start of a stretch and compared with the recorded altitude plus a
+free offset per stretch, it is fitted by nonlinear least squares
+(`scipy.optimize.least_squares`) for (crr, CdA, wind) with the mass given, or
+(mass, CdA, wind) with crr at its prior when the mass is not given (mass and crr are
+nearly collinear: climbs pin the mass, but not both). Kinetic energy telescopes, so speed noise enters only
 at the stretch ends. Only intervals where the balance holds are used: pedalling (a
 rider who coasts may be braking, which a power meter cannot see), above walking speed,
 no hard acceleration or braking, no tight cornering (GPS yaw rate), and not next to a
 gap. The uncertainty is a bootstrap over stretches (the errors within one stretch are
 correlated: wind, altimeter drift). crr is weakly identified without speed variety; a
-crr outside a plausible band or with a bootstrap spread over 40 % is fixed to a prior
-and said so. A CdA no physical rider has is a refusal: the speed cannot come from
+crr outside a plausible band is fixed to its prior and said so; a mass at the edge of
+its range is a refusal (pass it). A CdA no physical rider has is a refusal: the speed cannot come from
 that power (a virtual ride's simulated speed, a wrong mass, a broken meter).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import pymap3d
+from scipy.optimize import least_squares
 
+from itt_planner.calibration.aero_design import Design, Selection, design
 from itt_planner.calibration.ride_data import CalibrationError, RideSeries
-from itt_planner.conditions import GRAVITY_MPS2
 
 #: CdA outside this band is no rider on a bicycle (m^2): refused, not reported.
 PHYSICAL_CDA_M2 = (0.15, 0.60)
+#: Bounds of the fit: wind components (m/s), crr.
+_WIND_MAX_MPS = 12.0
+_CRR_BOUNDS = (-0.05, 0.08)
 
 
 @dataclass(frozen=True)
 class AeroSettings:
-    """Which intervals the fit trusts, the priors, and the bootstrap.
+    """What the fit assumes and how hard it looks.
 
     Attributes:
-        mass_kg: rider + bicycle; None: estimated (see `fit_aero`).
+        mass_kg: rider + bicycle; None: estimated (crr then at `crr_prior`).
         drivetrain_efficiency: wheel power / measured power (1.0: the meter's power
-            reaches the road, as the planner's model assumes).
-        min_power_w: intervals below this are coasting (braking unseen): excluded.
-        min_speed_mps: below this speed noise dominates: excluded.
-        max_accel_mps2: |dv/dt| above this is a sprint or braking: excluded.
-        max_lateral_mps2: lateral acceleration (GPS yaw rate x speed) above this is a
-            corner, usually with braking: excluded.
-        guard_s: this much around every excluded interval is excluded too.
-        min_stretch_s, max_stretch_s: stretches shorter are dropped, longer are split.
-        crr_prior: crr used when the data cannot separate it from CdA.
-        crr_band: a fitted crr outside this band is not believed.
-        bootstrap: resamples of the stretches.
+            reaches the road).
+        selection: which intervals hold the balance (`aero_design.Selection`).
+        crr_prior: crr used when it is not fitted.
+        crr_band: a fitted crr outside this band is not believed (fixed to the prior).
+        fit_wind: fit one steady wind per ride (False: still air).
+        bootstrap: resamples of the stretches for the standard deviations.
+        mass_range_kg: the estimated mass must lie inside (not at the edge).
+        simulated_rmse_m: a virtual elevation this close to the recorded one (m RMS)
+            is no real road: barometers quantise by ~0.2 m and drift, gusts vary.
+        allow_simulated: fit such a ride anyway.
     """
 
     mass_kg: float | None = None
     drivetrain_efficiency: float = 1.0
-    min_power_w: float = 40.0
-    min_speed_mps: float = 3.0
-    max_accel_mps2: float = 0.7
-    max_lateral_mps2: float = 2.0
-    guard_s: int = 3
-    min_stretch_s: float = 30.0
-    max_stretch_s: float = 240.0
+    selection: Selection = Selection()
     crr_prior: float = 0.004
     crr_band: tuple[float, float] = (0.002, 0.012)
-    bootstrap: int = 300
+    fit_wind: bool = True
+    bootstrap: int = 100
     seed: int = 0
-    mass_range_kg: tuple[float, float] = (50.0, 140.0)
-    #: A virtual elevation this close to the recorded one (m RMS) is no real road:
-    #: barometers quantise by ~0.2 m and drift, and the wind is never still.
+    mass_range_kg: tuple[float, float] = (45.0, 150.0)
     simulated_rmse_m: float = 0.3
     allow_simulated: bool = False
 
 
 @dataclass(frozen=True, eq=False)
 class AeroFit:
-    """The fitted drag area and rolling resistance, with bootstrap standard deviations.
+    """The fitted drag area, rolling resistance, mass and wind, with bootstrap sds.
 
     Attributes:
         crr_fixed: crr was not fitted but set to the prior (`crr_note` says why).
+        wind_mps: per ride, the fitted wind (east, north) the air moves TO (m/s).
         used_s: time of the intervals that entered the fit.
         rmse_m: RMS of virtual minus recorded elevation (after the stretch offsets).
         stretches: (start, end) sample indices of the FIRST ride's stretches (figure).
-        virtual_ele_m: the first ride's virtual elevation over those samples (NaN
-            elsewhere), aligned to the recorded one per stretch.
+        virtual_ele_m: the first ride's virtual elevation on those samples (NaN
+            elsewhere), shifted to the recorded one per stretch.
     """
 
     cda_m2: float
@@ -98,6 +99,8 @@ class AeroFit:
     crr_std: float
     crr_fixed: bool
     crr_note: str
+    wind_mps: np.ndarray
+    wind_std_mps: np.ndarray
     used_s: float
     n_stretches: int
     rmse_m: float
@@ -106,186 +109,103 @@ class AeroFit:
     virtual_ele_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def as_dict(self) -> dict[str, object]:
+        winds = [wind_meteo(w) for w in self.wind_mps]
         return {"cda_m2": round(self.cda_m2, 4), "cda_std_m2": round(self.cda_std_m2, 4),
                 "mass_kg": round(self.mass_kg, 1), "mass_std_kg": round(self.mass_std_kg, 1),
                 "mass_estimated": self.mass_estimated,
                 "crr": round(self.crr, 5), "crr_std": round(self.crr_std, 5),
                 "crr_fixed": self.crr_fixed, "crr_note": self.crr_note,
+                "wind": [{"speed_kmh": round(k, 1), "from_deg": round(d, 0),
+                          "std_kmh": round(3.6 * float(np.hypot(*sd)), 1)}
+                         for (k, d), sd in zip(winds, self.wind_std_mps, strict=True)],
                 "used_s": round(self.used_s, 1), "n_stretches": self.n_stretches,
                 "virtual_elevation_rmse_m": round(self.rmse_m, 2),
                 "air_density_kgpm3": round(self.air_density_kgpm3, 4)}
 
 
-def lateral_accel_mps2(ride: RideSeries) -> np.ndarray:
-    """|v x yaw rate| per sample from the GPS track's heading (NaN without positions)."""
-    lat, lon = ride.lat_deg, ride.lon_deg
-    good = np.isfinite(lat) & np.isfinite(lon)
-    if good.sum() < 3:
-        return np.full(len(ride), np.nan)
-    i0 = int(np.flatnonzero(good)[0])
-    x, y, _ = pymap3d.geodetic2enu(lat, lon, 0.0, lat[i0], lon[i0], 0.0)
-    # Heading over +-2 samples: single 1 Hz fixes jitter by metres.
-    k = 2
-    dx = np.full(len(ride), np.nan)
-    dy = np.full(len(ride), np.nan)
-    dx[k:-k], dy[k:-k] = x[2 * k:] - x[:-2 * k], y[2 * k:] - y[:-2 * k]
-    heading = np.unwrap(np.nan_to_num(np.arctan2(dy, dx)))
-    yaw = np.gradient(heading, ride.t_s)
-    out = np.abs(ride.v_mps * yaw)
-    return np.where(np.isfinite(dx) & (np.hypot(dx, dy) > 1.0), out, np.nan)
+def wind_meteo(wind_enu_mps: np.ndarray) -> tuple[float, float]:
+    """(speed km/h, direction FROM in degrees clockwise from North) of an ENU wind
+    (where the air moves TO): the units of `Conditions.from_meteo`."""
+    e, n = float(wind_enu_mps[0]), float(wind_enu_mps[1])
+    return 3.6 * math.hypot(e, n), math.degrees(math.atan2(-e, -n)) % 360.0
 
 
-def usable_intervals(ride: RideSeries, st: AeroSettings) -> np.ndarray:
-    """Boolean per interval (i, i+1): the power balance without braking holds there."""
-    dt = np.diff(ride.t_s)
-    v, p = ride.v_mps, ride.power_w
-    ok = (np.diff(ride.block) == 0) & (dt > 0) & (dt <= 2.0)
-    ok &= (p[1:] >= st.min_power_w) & (p[:-1] >= st.min_power_w)
-    ok &= (v[1:] >= st.min_speed_mps) & (v[:-1] >= st.min_speed_mps)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ok &= np.abs(np.diff(v) / dt) <= st.max_accel_mps2
-    lat = lateral_accel_mps2(ride)
-    ok &= ~(np.nan_to_num(lat[1:], nan=0.0) > st.max_lateral_mps2)
-    # Erode: the seconds next to a coast, a sprint or a corner are rarely clean.
-    bad = ~ok
-    for shift in range(1, st.guard_s + 1):
-        bad[shift:] |= ~ok[:-shift]
-        bad[:-shift] |= ~ok[shift:]
-    return ~bad
+class _Problem:
+    """The parameters one fit frees (mass, crr, cda, wind per ride) around fixed values."""
 
+    def __init__(self, des: Design, free: tuple[str, ...], fixed: dict[str, float],
+                 fit_wind: bool, mass_range: tuple[float, float]) -> None:
+        self.des, self.free, self.fixed, self.fit_wind = des, free, fixed, fit_wind
+        lo = {"mass": mass_range[0], "crr": _CRR_BOUNDS[0], "cda": 0.01}
+        hi = {"mass": mass_range[1], "crr": _CRR_BOUNDS[1], "cda": 2.0}
+        nw = 2 * des.n_rides if fit_wind else 0
+        self.lower = np.array([lo[k] for k in free] + [-_WIND_MAX_MPS] * nw)
+        self.upper = np.array([hi[k] for k in free] + [_WIND_MAX_MPS] * nw)
 
-def _stretches(ok: np.ndarray, st: AeroSettings) -> list[tuple[int, int]]:
-    """Runs of usable intervals as sample ranges [start, end], split and filtered."""
-    out: list[tuple[int, int]] = []
-    edges = np.diff(np.concatenate([[0], ok.astype(int), [0]]))
-    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
-        # Intervals a..b-1 are usable: samples a..b.
-        n_int = b - a
-        pieces = max(1, int(np.ceil(n_int / st.max_stretch_s)))
-        bounds = np.linspace(a, b, pieces + 1).round().astype(int)
-        for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
-            if hi - lo >= st.min_stretch_s:
-                out.append((int(lo), int(hi)))
-    return out
+    def unpack(self, x: np.ndarray) -> tuple[float, float, float, np.ndarray]:
+        values = dict(self.fixed)
+        values.update(zip(self.free, x[:len(self.free)], strict=True))
+        wind = (x[len(self.free):].reshape(-1, 2) if self.fit_wind
+                else np.zeros((self.des.n_rides, 2)))
+        return values["mass"], values["crr"], values["cda"], wind
 
+    def solve(self, x0: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+        x0 = np.clip(x0, self.lower + 1e-9, self.upper - 1e-9)
+        res = least_squares(lambda x: self.des.residual(*self.unpack(x), weights=weights), x0,
+                            bounds=(self.lower, self.upper), x_scale="jac")
+        return np.asarray(res.x)
 
-def _columns(ride: RideSeries, st: AeroSettings, lo: int, hi: int, m: float
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For samples lo..hi: y = recorded height minus the explained-by-power height, and
-    the regressors of crr and CdA (cumulative from the stretch start), so that
-    y = offset - crr * D - CdA * C."""
-    g = GRAVITY_MPS2
-    t, v = ride.t_s[lo:hi + 1], ride.v_mps[lo:hi + 1]
-    p, rho = ride.power_w[lo:hi + 1], ride.rho_kgpm3[lo:hi + 1]
-    dt = np.diff(t)
-    work = st.drivetrain_efficiency * 0.5 * (p[1:] + p[:-1]) * dt - 0.5 * m * np.diff(v * v)
-    d = 0.5 * (v[1:] + v[:-1]) * dt
-    c = 0.25 * (rho[1:] + rho[:-1]) * 0.5 * (v[1:] ** 3 + v[:-1] ** 3) * dt / (m * g)
-    cum = lambda a: np.concatenate([[0.0], np.cumsum(a)])  # noqa: E731
-    y = ride.ele_m[lo:hi + 1] - ride.ele_m[lo] - cum(work) / (m * g)
-    return y, cum(d), cum(c)
+    def start(self, mass: float, crr: float) -> np.ndarray:
+        guess = {"mass": mass, "crr": crr, "cda": 0.3}
+        nw = 2 * self.des.n_rides if self.fit_wind else 0
+        return np.array([guess[k] for k in self.free] + [0.0] * nw)
 
-
-def _moments(cols: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> np.ndarray:
-    """Per stretch, the demeaned cross products [DD, DC, CC, Dy, Cy, yy] (for OLS/bootstrap)."""
-    out = np.empty((len(cols), 6))
-    for k, (y, d, c) in enumerate(cols):
-        y, d, c = y - y.mean(), d - d.mean(), c - c.mean()
-        out[k] = (d @ d, d @ c, c @ c, d @ y, c @ y, y @ y)
-    return out
-
-
-def _rss(mom: np.ndarray, crr: np.ndarray | float, cda: np.ndarray | float) -> np.ndarray:
-    """Residual sum of squares of y + crr D + CdA C from (summed) moments."""
-    dd, dc, cc, dy, cy, yy = np.moveaxis(mom, -1, 0)
-    return yy + 2 * crr * dy + 2 * cda * cy + crr ** 2 * dd + 2 * crr * cda * dc + cda ** 2 * cc
-
-
-def _profile_mass(rides: list[RideSeries], spans: list[tuple[int, int, int]],
-                  st: AeroSettings, picks: np.ndarray) -> tuple[float, float]:
-    """Mass (and its bootstrap sd) minimising the virtual-elevation misfit, crr at the
-    prior: mass is what climbs and accelerations pin down; crr and mass are nearly
-    collinear, so both free would be unidentified."""
-    grid = np.arange(st.mass_range_kg[0], st.mass_range_kg[1] + 1e-9, 1.0)
-    mom = np.array([_moments([_columns(rides[k], st, lo, hi, m) for k, lo, hi in spans])
-                    for m in grid])  # (mass, stretch, 6)
-
-    def best(summed: np.ndarray) -> float:
-        dc, cc, cy = summed[..., 1], summed[..., 2], summed[..., 4]
-        cda = -(cy + st.crr_prior * dc) / cc
-        return float(grid[int(np.argmin(_rss(summed, st.crr_prior, cda)))])
-
-    estimate = best(mom.sum(axis=1))
-    if estimate in (grid[0], grid[-1]):
-        names = ", ".join(r.source for r in rides)
-        raise CalibrationError(f"{names}: the mass is not identified by the ride (the best fit "
-                               f"is at the edge of {st.mass_range_kg} kg); pass --mass-kg")
-    boot = [best(mom[:, k].sum(axis=1)) for k in picks]
-    return estimate, float(np.std(boot, ddof=1))
-
-
-def _solve(mom: np.ndarray, crr_fixed: float | None) -> tuple[float, float]:
-    """OLS of y = -crr D - CdA C (demeaned) from summed moments; crr given if fixed."""
-    dd, dc, cc, dy, cy, _ = mom.sum(axis=0)
-    if crr_fixed is not None:
-        return crr_fixed, float(-(cy + crr_fixed * dc) / cc)
-    a = np.array([[dd, dc], [dc, cc]])
-    crr, cda = np.linalg.solve(a, -np.array([dy, cy]))
-    return float(crr), float(cda)
+    def rmse(self, x: np.ndarray) -> float:
+        return float(np.sqrt(np.mean(self.des.residual(*self.unpack(x)) ** 2)))
 
 
 def fit_aero(rides: list[RideSeries], st: AeroSettings) -> AeroFit:
-    """CdA and crr of one rider from one or more rides (shared CdA, crr, mass).
-
-    Without `st.mass_kg`, the mass is estimated first (`_profile_mass`) and its
-    uncertainty is reported; CdA's bootstrap then holds the mass at that estimate.
+    """CdA, crr (or mass) and the wind of one rider from one or more rides.
 
     Raises:
         CalibrationError: fewer than 3 usable stretches (too much coasting, stopping or
-            cornering); a mass the ride does not identify; a CdA no physical rider has
-            (names the value and the likely cause); or a power balance that holds too
-            exactly for a real road (a virtual ride's simulated speed), unless
-            `st.allow_simulated`.
+            cornering); a mass at the edge of its range (not identified: pass it); a CdA
+            no physical rider has (names the value and the likely cause); or a balance
+            that holds too exactly for a real road (a virtual ride's simulated speed),
+            unless `st.allow_simulated`.
     """
-    spans: list[tuple[int, int, int]] = []
-    for k, ride in enumerate(rides):
-        spans += [(k, lo, hi) for lo, hi in _stretches(usable_intervals(ride, st), st)]
     names = ", ".join(r.source for r in rides)
-    if len(spans) < 3:
+    des = design(rides, st.selection, st.drivetrain_efficiency)
+    if len(des.spans) < 3:
         raise CalibrationError(
-            f"{names}: only {len(spans)} stretches of >= {st.min_stretch_s:.0f} s where the power "
-            "balance holds (pedalling, moving, no braking or hard cornering); need at least 3")
-    rng = np.random.default_rng(st.seed)
-    picks = rng.integers(0, len(spans), size=(st.bootstrap, len(spans)))
+            f"{names}: only {len(des.spans)} stretches of >= {st.selection.min_stretch_s:.0f} s "
+            "where the power balance holds (pedalling, moving, no braking or hard cornering); "
+            "need at least 3")
+    mass0 = st.mass_kg if st.mass_kg is not None else 80.0
     if st.mass_kg is None:
-        mass, mass_std = _profile_mass(rides, spans, st, picks)
-    else:
-        mass, mass_std = float(st.mass_kg), 0.0
-    cols = [_columns(rides[k], st, lo, hi, mass) for k, lo, hi in spans]
-    mom = _moments(cols)
-    crr, cda = _solve(mom, None)
-    n = sum(len(c[0]) for c in cols)
-    # The closest ANY (crr, CdA) gets: the test of a too-perfect (simulated) balance.
-    rmse_free = float(np.sqrt(max(float(_rss(mom.sum(axis=0), crr, cda)), 0.0) / n))
-    boot = np.array([_solve(mom[k], None) for k in picks])
-    crr_std = float(np.std(boot[:, 0], ddof=1))
-    lo_band, hi_band = st.crr_band
-    note = "fitted"
-    if st.mass_kg is None:
+        prob = _Problem(des, ("mass", "cda"), {"crr": st.crr_prior}, st.fit_wind,
+                        st.mass_range_kg)
         note = f"mass estimated with crr at the prior {st.crr_prior} (mass and crr are collinear)"
-    elif not lo_band <= crr <= hi_band:
-        note = (f"fitted crr {crr:.4f} is outside [{lo_band}, {hi_band}]: the ride cannot "
-                f"separate rolling from air drag; crr fixed to {st.crr_prior}")
-    elif crr_std > 0.4 * crr:
-        note = (f"fitted crr {crr:.4f} +- {crr_std:.4f} is not identified; crr fixed to "
-                f"{st.crr_prior}")
-    fixed = note != "fitted"
-    if fixed:
-        crr, cda = _solve(mom, st.crr_prior)
-        boot = np.array([_solve(mom[k], st.crr_prior) for k in picks])
-        crr_std = 0.0
-    cda_std = float(np.std(boot[:, 1], ddof=1))
-    rmse = float(np.sqrt(max(float(_rss(mom.sum(axis=0), crr, cda)), 0.0) / n))
+    else:
+        prob = _Problem(des, ("crr", "cda"), {"mass": st.mass_kg}, st.fit_wind,
+                        st.mass_range_kg)
+        note = "fitted"
+    x = prob.solve(prob.start(mass0, st.crr_prior))
+    mass, crr, cda, wind = prob.unpack(x)
+    if st.mass_kg is None and min(mass - st.mass_range_kg[0], st.mass_range_kg[1] - mass) < 1.0:
+        raise CalibrationError(f"{names}: the mass is not identified by the ride (the best fit "
+                               f"is at the edge of {st.mass_range_kg} kg); pass --mass-kg")
+    # The closest ANY crr and CdA get at this mass: the test of a too-perfect balance.
+    free = _Problem(des, ("crr", "cda"), {"mass": mass}, st.fit_wind, st.mass_range_kg)
+    x_free = free.solve(free.start(mass, crr))
+    rmse_free = free.rmse(x_free)
+    if st.mass_kg is not None and not st.crr_band[0] <= crr <= st.crr_band[1]:
+        note = (f"fitted crr {crr:.4f} is outside {list(st.crr_band)}: the ride cannot separate "
+                f"rolling from air drag; crr fixed to {st.crr_prior}")
+        prob = _Problem(des, ("cda",), {"mass": st.mass_kg, "crr": st.crr_prior}, st.fit_wind,
+                        st.mass_range_kg)
+        x = prob.solve(prob.start(mass0, st.crr_prior))
+        mass, crr, cda, wind = prob.unpack(x)
     if not PHYSICAL_CDA_M2[0] <= cda <= PHYSICAL_CDA_M2[1]:
         raise CalibrationError(
             f"{names}: speed and power disagree with any physical rider: the best power "
@@ -296,28 +216,64 @@ def fit_aero(rides: list[RideSeries], st: AeroSettings) -> AeroFit:
         raise CalibrationError(
             f"{names}: the speed is simulated, not measured: power, speed and altitude obey "
             f"one power balance to {rmse_free:.2f} m RMS of virtual elevation over "
-            f"{len(spans)} stretches (CdA {cda:.3f} m^2, mass {mass:.0f} kg), tighter than any "
-            f"real altimeter and wind allow (>= {st.simulated_rmse_m} m). This is a virtual "
+            f"{len(des.spans)} stretches (CdA {cda:.3f} m^2, mass {mass:.0f} kg), tighter than "
+            f"any real altimeter and wind allow (>= {st.simulated_rmse_m} m). This is a virtual "
             "ride (Zwift and similar): its speed is the game's physics, not the rider's; "
             "--allow-virtual fits the game's rider anyway")
-    first = [(lo, hi) for k, lo, hi in spans if k == 0]
-    ve = _virtual_elevation(rides[0], cols[:len(first)], first, crr, cda)
-    rho = float(np.mean(np.concatenate([r.rho_kgpm3 for r in rides])))
-    used = float(sum(rides[k].t_s[hi] - rides[k].t_s[lo] for k, lo, hi in spans))
-    return AeroFit(cda_m2=cda, cda_std_m2=cda_std, mass_kg=mass, mass_std_kg=mass_std,
-                   mass_estimated=st.mass_kg is None, crr=crr, crr_std=crr_std,
-                   crr_fixed=fixed, crr_note=note, used_s=used, n_stretches=len(spans),
-                   rmse_m=rmse, air_density_kgpm3=rho, stretches=first, virtual_ele_m=ve)
+    mass, crr, cda = float(mass), float(crr), float(cda)
+    boot = _bootstrap(prob, x, len(des.spans), st)
+    sd = np.std(np.array([prob.unpack(b)[:3] for b in boot]), axis=0, ddof=1)
+    wind_sd = np.std(np.array([prob.unpack(b)[3] for b in boot]), axis=0, ddof=1)
+    first = [(lo, hi) for k, lo, hi in des.spans if k == 0]
+    return AeroFit(
+        cda_m2=cda, cda_std_m2=float(sd[2]), mass_kg=mass, mass_std_kg=float(sd[0]),
+        mass_estimated=st.mass_kg is None, crr=crr, crr_std=float(sd[1]),
+        crr_fixed=note != "fitted", crr_note=note, wind_mps=wind, wind_std_mps=wind_sd,
+        used_s=float(sum(rides[k].t_s[hi] - rides[k].t_s[lo] for k, lo, hi in des.spans)),
+        n_stretches=len(des.spans), rmse_m=prob.rmse(x),
+        air_density_kgpm3=float(np.mean(np.concatenate([r.rho_kgpm3 for r in rides]))),
+        stretches=first, virtual_ele_m=_virtual_elevation(rides[0], des, mass, crr, cda, wind))
 
 
-def _virtual_elevation(ride: RideSeries, cols: list[tuple[np.ndarray, np.ndarray,
-                       np.ndarray]], spans: list[tuple[int, int]], crr: float, cda: float
-                       ) -> np.ndarray:
-    """The fitted virtual elevation of `ride` on its samples (NaN off-stretch), each
-    stretch shifted to the recorded altitude's mean (the fit's free offset)."""
+def fit_day_wind(ride: RideSeries, mass_kg: float, crr: float, cda_m2: float,
+                 efficiency: float = 1.0, selection: Selection = Selection()) -> np.ndarray:
+    """The steady wind (east, north, m/s, where the air moves TO) that best explains one
+    ride for a known rider: the conditions of the day, for validating that rider.
+
+    Raises:
+        CalibrationError: fewer than 3 usable stretches.
+    """
+    des = design([ride], selection, efficiency)
+    if len(des.spans) < 3:
+        raise CalibrationError(f"{ride.source}: only {len(des.spans)} stretches where the power "
+                               "balance holds; the wind of the day cannot be fitted")
+    prob = _Problem(des, (), {"mass": mass_kg, "crr": crr, "cda": cda_m2}, True, (1.0, 1e3))
+    return prob.unpack(prob.solve(prob.start(mass_kg, crr)))[3][0]
+
+
+def _bootstrap(prob: _Problem, x: np.ndarray, n_stretches: int, st: AeroSettings
+               ) -> list[np.ndarray]:
+    """Refits on stretches resampled with replacement (multiplicities as weights): the
+    errors within one stretch (gusts, altimeter drift) are correlated, across stretches
+    much less."""
+    rng = np.random.default_rng(st.seed)
+    out = []
+    for _ in range(st.bootstrap):
+        counts = np.bincount(rng.integers(0, n_stretches, n_stretches),
+                             minlength=n_stretches).astype(float)
+        out.append(prob.solve(x, weights=counts))
+    return out
+
+
+def _virtual_elevation(ride: RideSeries, des: Design, mass: float, crr: float, cda: float,
+                       wind: np.ndarray) -> np.ndarray:
+    """The first ride's virtual elevation on its samples (NaN off-stretch), each stretch
+    shifted to the recorded altitude's mean (the fit's free offset)."""
+    height = des.virtual_height(mass, crr, cda, wind)
     ve = np.full(len(ride), np.nan)
-    for (lo, hi), (y, d, c) in zip(spans, cols, strict=True):
-        rec = ride.ele_m[lo:hi + 1] - ride.ele_m[lo]
-        virt = rec - y - crr * d - cda * c  # = work/(mg) - crr D - CdA C from the start
+    for g, (k, lo, hi) in enumerate(des.spans):
+        if k != 0:
+            continue
+        virt = height[des.group == g]
         ve[lo:hi + 1] = virt + np.mean(ride.ele_m[lo:hi + 1] - virt)
     return ve

@@ -25,6 +25,7 @@ class ForwardRun:
     """The model's speed and elapsed time on the ride's grid."""
 
     model: str
+    label: str
     s_m: np.ndarray
     v_mps: np.ndarray
     t_s: np.ndarray
@@ -35,8 +36,9 @@ class ForwardRun:
 
 
 def forward_1d(course: Course, rider: Rider, ride: RideOnCourse,
-               conditions: Conditions = Conditions()) -> ForwardRun:
-    """The 1D model driven by the ride's power, starting at the ride's first speed."""
+               conditions: Conditions = Conditions(), label: str = "still air") -> ForwardRun:
+    """The 1D model driven by the ride's power, starting at the ride's first speed (wind
+    from `conditions`, projected on the road's heading as E3 does)."""
     model = build_1d()
     step = rk4_step(model, 2)
     par = ModelParams(rider, conditions).vector()
@@ -60,4 +62,4 @@ def forward_1d(course: Course, rider: Rider, ride: RideOnCourse,
         x[2] = 1.0  # W' balance plays no part in replaying measured power
         v[k + 1] = x[0]
         t[k + 1] = t[k] + float(dt)
-    return ForwardRun("1d", s, v, t)
+    return ForwardRun("1d", label, s, v, t)

@@ -22,8 +22,9 @@ def course_progress(course: Course, lat_deg: np.ndarray, lon_deg: np.ndarray,
                     t_s: np.ndarray, max_offset_m: float = 25.0) -> np.ndarray:
     """Arc length `s` (m) on `course` of each fix, NaN where unmatched.
 
-    The first match is searched over the whole course (the ride may start anywhere on
-    a closed loop's lap), later ones from the previous match forward.
+    The first match is the earliest passage within `max_offset_m` over the whole course
+    (the ride may start anywhere; a closed loop's end lies on its start), later ones are
+    searched from the previous match forward.
     """
     x, y, _ = course.from_geodetic(lat_deg, lon_deg, np.full(len(lat_deg), course.origin.alt_m))
     x, y = np.asarray(x, float), np.asarray(y, float)
@@ -40,7 +41,13 @@ def course_progress(course: Course, lat_deg: np.ndarray, lon_deg: np.ndarray,
             lo = max(last_i - int(_SLACK_M / ds), 0)
             hi = min(last_i + int(reach / ds) + 1, len(course.s_m))
         d2 = (course.x_m[lo:hi] - x[k]) ** 2 + (course.y_m[lo:hi] - y[k]) ** 2
-        j = int(np.argmin(d2))
+        near = np.flatnonzero(d2 <= max_offset_m ** 2)
+        if last_i < 0 and len(near):
+            # First match: the earliest passage (a closed loop's end lies on its start).
+            j0 = int(near[0])
+            j = j0 + int(np.argmin(d2[j0:j0 + int(2 * max_offset_m / ds) + 1]))
+        else:
+            j = int(np.argmin(d2))
         if d2[j] > max_offset_m ** 2:
             continue
         if last_i >= 0 and lo + j < last_i:

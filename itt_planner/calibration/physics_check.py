@@ -34,7 +34,7 @@ def physics_check(run: ForwardRun, ride: RideOnCourse, course: Course) -> dict[s
     err = 3.6 * (run.v_mps - ride.v_mps)
     real = ride.moving_time_s
     out: dict[str, Any] = {
-        "model": run.model,
+        "model": run.model, "conditions": run.label,
         "finish_s": round(run.finish_time_s, 1),
         "ride_moving_s": round(real, 1),
         "finish_error_pct": round(100.0 * (run.finish_time_s / real - 1.0), 3),

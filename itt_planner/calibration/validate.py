@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from itt_planner.calibration.aero import fit_day_wind, wind_meteo
 from itt_planner.calibration.calibrate import CalibrationOptions, calibrate, load_rides
 from itt_planner.calibration.forward import ForwardRun, forward_1d
 from itt_planner.calibration.physics_check import physics_check
@@ -40,15 +41,25 @@ class Validation:
     plans: list[Any]
 
 
-def ride_conditions(ride: RideSeries) -> Conditions:
-    """Still air at the ride's mean air density."""
-    return Conditions(air_density_kgpm3=float(np.mean(ride.rho_kgpm3)))
+def ride_conditions(ride: RideSeries, wind_enu_mps: np.ndarray | None = None) -> Conditions:
+    """The ride's mean air density, still or with a steady wind (ENU, where it blows TO)."""
+    rho = float(np.mean(ride.rho_kgpm3))
+    if wind_enu_mps is None:
+        return Conditions(air_density_kgpm3=rho)
+    speed_kmh, from_deg = wind_meteo(wind_enu_mps)
+    return dataclasses.replace(Conditions.from_meteo(wind_kmh=speed_kmh, wind_from_deg=from_deg),
+                               air_density_kgpm3=rho)
 
 
 def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *,
                   plan_models: tuple[str, ...] = (), temperature_c: float | None = None,
                   cache_dir: Path = Path(".itt_cache")) -> Validation:
-    """Physics check (1D forward run) and, for each of `plan_models`, the plan check.
+    """Physics check (1D forward runs in still air and in the day's wind) and, for each
+    of `plan_models`, the plan check (at the ride's air density, in the day's wind).
+
+    The day's wind is fitted to the ride for this rider (`aero.fit_day_wind`): two
+    numbers for the whole ride, a condition of the day like the air density, not a
+    property of the rider. Without enough steady stretches only still air is run.
 
     Raises:
         CalibrationError: the ride is unusable or does not lie on `course`.
@@ -59,11 +70,23 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
     on_course = ride_on_course(series, course)
     conditions = ride_conditions(series)
     runs = [forward_1d(course, rider, on_course, conditions)]
+    wind_note: dict[str, Any] = {}
+    try:
+        wind = fit_day_wind(series, rider.mass_kg, rider.crr, rider.drag_area_m2,
+                            rider.drivetrain_efficiency)
+    except CalibrationError as err:
+        wind_note = {"not_fitted": str(err)}
+    else:
+        conditions = ride_conditions(series, wind)
+        runs.append(forward_1d(course, rider, on_course, conditions, "day wind"))
+        speed_kmh, from_deg = wind_meteo(wind)
+        wind_note = {"speed_kmh": round(speed_kmh, 1), "from_deg": round(from_deg, 0)}
     figures: dict[str, Any] = {
         "ride": series.source, "course": course.name, "rider": rider.name,
         "matched_share": round(on_course.matched_share, 3),
         "covered_m": round(float(on_course.s_m[-1] - on_course.s_m[0]), 1),
         "air_density_kgpm3": round(conditions.air_density_kgpm3, 4),
+        "day_wind": wind_note,
         "physics": [physics_check(run, on_course, course) for run in runs],
         "physics_3d": ("not run: the 3D virtual rider (simulate.simulate_ride) follows a "
                        "plan's line and power by distance; replaying a measured ride through "
@@ -104,8 +127,9 @@ def holdout(rides: list[str | Path], courses: list[Course],
         except CalibrationError as err:
             out.append({"held_out": str(ride), "refused": str(err)})
             continue
-        phys = val.figures["physics"][0]
+        phys = val.figures["physics"][-1]
         out.append({"held_out": str(ride), "trained_on": [str(r) for r in train],
+                    "conditions": phys["conditions"],
                     "cda_m2": round(fit.rider.drag_area_m2, 4),
                     "mass_kg": round(fit.rider.mass_kg, 1),
                     "refusals": fit.refusals,

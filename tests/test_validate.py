@@ -1,0 +1,100 @@
+"""Validation: the 1D model replaying a ride's power against the ride, the CLI, hold-out."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from itt_planner.calibration import CalibrationError, CalibrationOptions, calibrate
+from itt_planner.calibration.validate import validate_ride
+from itt_planner.cli import app
+from itt_planner.course_loader import load_course
+
+ST_JOHNS = "rides/edge810_vector_stjohns_2013.fit"
+SAUERLAND = "rides/sauerland_2025.fit"
+
+
+@pytest.fixture(scope="module")
+def st_johns(request):
+    """The St John's ride (MIT, in tests/data/), its course and its calibrated rider."""
+    from real_data import data_path  # noqa: PLC0415  (the data_file fixture is function-scoped)
+
+    path = data_path(ST_JOHNS)
+    course = load_course(path)
+    return path, course, calibrate([path], CalibrationOptions(), courses=[course]).rider
+
+
+@pytest.fixture(scope="module")
+def st_johns_validation(st_johns):
+    path, course, rider = st_johns
+    return validate_ride(path, course, rider).figures
+
+
+def test_same_ride_finish_within_1pct(st_johns_validation) -> None:
+    """Calibrated on the same ride, the 1D replay of its power finishes within 1 % of the
+    ride's moving time, in still air and in the day's fitted wind (issue 15)."""
+    still, windy = st_johns_validation["physics"]
+    assert (still["conditions"], windy["conditions"]) == ("still air", "day wind")
+    assert abs(still["finish_error_pct"]) < 1.0, still
+    assert abs(windy["finish_error_pct"]) < 1.0, windy
+    assert windy["mae_kmh"] < still["mae_kmh"]  # the wind explains part of the speed error
+    assert windy["per_km"] and 0 < windy["share_within_2kmh"] <= 1
+    assert st_johns_validation["day_wind"]["speed_kmh"] > 0
+
+
+@pytest.mark.xfail(strict=True, reason="NOT MET (issue 15): speed MAE 2.4 km/h in the day's "
+                   "wind vs a raw-GPS noise floor of 0.4 km/h on St John's; the replay has no "
+                   "braking (descents +2.9 km/h bias) and one steady wind")
+def test_same_ride_speed_mae_near_noise_floor(st_johns_validation) -> None:
+    windy = st_johns_validation["physics"][-1]
+    assert windy["mae_kmh"] <= windy["noise_floor_kmh"] + 1.0, windy
+
+
+def test_wrong_course_is_refused(st_johns, data_file) -> None:
+    path, _, rider = st_johns
+    other = load_course(data_file(SAUERLAND))
+    with pytest.raises(CalibrationError, match="wrong --course"):
+        validate_ride(path, other, rider)
+
+
+def test_cli_calibrate_then_validate(st_johns, tmp_path: Path) -> None:
+    """The README's commands: ride -> rider YAML (+ report) -> validation JSON (+ report)."""
+    path, _, _ = st_johns
+    runner = CliRunner()
+    rider = tmp_path / "me.yaml"
+    out = runner.invoke(app, ["calibrate", str(path), "-o", str(rider), "--report",
+                              str(tmp_path / "cal.html"), "--json"])
+    assert out.exit_code == 0, out.output
+    summary = json.loads(out.stdout)
+    assert 0.18 <= summary["aero"]["cda_m2"] <= 0.45
+    assert (tmp_path / "cal.html").read_text().count("data:image/png") == 3
+    out = runner.invoke(app, ["validate", str(path), "--course", str(path), "--rider", str(rider),
+                              "--report", str(tmp_path / "val.html"), "--json"])
+    assert out.exit_code == 0, out.output
+    figures = json.loads(out.stdout)
+    assert abs(figures["physics"][0]["finish_error_pct"]) < 1.0
+    assert (tmp_path / "val.html").is_file()
+
+
+def test_cli_refusal_is_one_json_error(tmp_path: Path) -> None:
+    bad = tmp_path / "track.csv"
+    bad.write_text("lon,lat,ele\n10.0,45.0,100\n10.001,45.0,101\n10.002,45.0,102\n")
+    out = CliRunner().invoke(app, ["calibrate", str(bad), "--json"])
+    assert out.exit_code == 1
+    err = json.loads(out.stdout)
+    assert err["type"] == "CalibrationError" and "timestamps" in err["error"]
+
+
+@pytest.mark.slow
+def test_holdout_two_rides(data_file) -> None:
+    """Fit on one real ride, predict the other (out of sample), both ways."""
+    rides = [data_file(ST_JOHNS), data_file(SAUERLAND)]
+    out = CliRunner().invoke(app, ["validate", *map(str, rides), "--holdout", "--json"])
+    assert out.exit_code == 0, out.output
+    rows = json.loads(out.stdout)["holdout"]
+    assert len(rows) == 2
+    for row in rows:
+        assert "refused" in row or abs(row["finish_error_pct"]) < 10.0, row
