@@ -53,13 +53,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from itt_planner.advice import Advice, Cue, Diagnostic, Level
+from itt_planner.advice import Advice, Cue, Diagnostic
 from itt_planner.advice_shaping import AdviceShaper, ShapingSettings
 from itt_planner.conditions import Conditions
 from itt_planner.course import Course
 from itt_planner.course_replan import CourseReplanner, CourseReplanSettings, start_from
 from itt_planner.cp_monitor import CpMonitor, CpMonitorSettings, Refit
+from itt_planner.engine_health import (
+    CONVERGED, EngineCounts, input_diagnostics, solver_diagnostic,
+)
 from itt_planner.estimate import EstimatorSettings, StateEstimator
+from itt_planner.horizon_cut import Solution, advice_fields, finished_fields, from_plan
 from itt_planner.plan import Plan
 from itt_planner.rider import Rider
 from itt_planner.samples import GpsFix, PowerReading, Sample, WheelSpeed
@@ -122,58 +126,6 @@ class EngineSettings:
     line_gate_m: float = 5.0
 
 
-@dataclass(frozen=True)
-class EngineCounts:
-    """What the engine did not use silently, for warnings (`PacingEngine.counts`).
-
-    Attributes:
-        advice: advices published; fallbacks: of them, the last good advice shifted.
-        solves, solve_failures: horizon solves and those that failed, raised or overran.
-        unconverged_solves: accepted horizon solves that did not converge (a
-            budget-capped feasible iterate, "Suboptimal_Feasible", or IPOPT's acceptable
-            level).
-        course_replans_asked, course_replans_adopted, course_replan_failures:
-            re-solves of the rest of the course asked for, adopted, failed or unconverged.
-        refits_up, refits_down: CP revisions (`cp_monitor`).
-        cp_in_use_w, plan_version: the belief now (version 0: the first plan).
-        plan_status, plan_converged: solver status of the plan in force.
-    """
-
-    advice: int
-    fallbacks: int
-    solves: int
-    solve_failures: int
-    unconverged_solves: int
-    course_replans_asked: int
-    course_replans_adopted: int
-    course_replan_failures: int
-    refits_up: int
-    refits_down: int
-    cp_in_use_w: float
-    plan_version: int
-    plan_status: str
-    plan_converged: bool
-
-
-#: IPOPT statuses of a converged solve (anything else accepted is counted unconverged).
-CONVERGED = ("Solve_Succeeded",)
-
-
-@dataclass(frozen=True)
-class _Good:
-    """The last successful solve: what a fallback shifts forward."""
-
-    state: RiderState
-    s_m: np.ndarray
-    t_s: np.ndarray
-    power_w: np.ndarray
-    v_mps: np.ndarray
-    n_m: np.ndarray
-    w_prime_j: np.ndarray
-    predicted_finish_s: float
-    w_prime_finish_j: float
-
-
 class PacingEngine:
     """Inputs in, advice out (see the module docstring).
 
@@ -208,7 +160,7 @@ class PacingEngine:
         self._lock = threading.Lock()  # estimator + bookkeeping
         self._solve_lock = threading.Lock()  # one solve at a time
         self._last_advice_stamp: float | None = None
-        self._last_good: _Good | None = None
+        self._last_good: Solution | None = None
         self._last_status = "none"
         self._last_iterations = 0
         self._last_solve_time = 0.0
@@ -455,8 +407,8 @@ class PacingEngine:
             self._consecutive_failures = 0
             if sol.status not in CONVERGED:
                 self._stats["unconverged_solves"] += 1
-            good = _Good(state, sol.s_m, sol.t_s, sol.power_w, sol.v_mps, sol.n_m,
-                         sol.w_prime_j, sol.predicted_finish_s, sol.w_prime_finish_j)
+            good = Solution(state, sol.s_m, sol.t_s, sol.power_w, sol.v_mps, sol.n_m,
+                            sol.w_prime_j, sol.predicted_finish_s, sol.w_prime_finish_j)
             with self._lock:
                 self._last_good = good
             return self._advice(stamp_s, state, good, fallback=False)
@@ -505,140 +457,62 @@ class PacingEngine:
         heading = float(self.course.at("theta_rad", state.s_m)) + math.atan2(dn_ds, one_nk)
         return dataclasses.replace(state, n_m=n, heading_rad=heading)
 
-    def _from_plan(self, state: RiderState) -> _Good:
+    def _from_plan(self, state: RiderState) -> Solution:
         """The full-course plan over the horizon: the fallback before any good solve."""
-        p = self.plan
-        end = min(state.s_m + self.settings.horizon_m, self.course.length_m)
-        inside = (p.s_m > state.s_m) & (p.s_m < end)
-        s = np.concatenate([[state.s_m], p.s_m[inside], [end]])
-        t_plan = p.at("t_s", s)
-        w_plan = p.at("w_prime_j", s)
-        w_end = state.w_prime_j + float(p.w_prime_j[-1] - w_plan[0])
-        return _Good(
-            state=state, s_m=s, t_s=t_plan - t_plan[0], power_w=p.at("power_w", s),
-            v_mps=p.at("v_mps", s), n_m=p.at("n_m", s),
-            w_prime_j=state.w_prime_j + (w_plan - w_plan[0]),
-            predicted_finish_s=state.elapsed_s + p.finish_time_s - float(t_plan[0]),
-            w_prime_finish_j=min(w_end, self.rider.w_prime_j),
-        )
+        return from_plan(self.plan, self.course, state, self.settings.horizon_m,
+                         self.rider.w_prime_j)
 
-    def _advice(self, stamp_s: float, state: RiderState, good: _Good, *,
+    def _advice(self, stamp_s: float, state: RiderState, good: Solution, *,
                 fallback: bool) -> Advice:
-        """Advice from a solution, cut to start at the rider's current `s` (a fallback
-        is the old solution shifted forward; its finish prediction keeps the time the
-        rider lost or gained against it since)."""
-        keep = good.s_m > state.s_m
-        s = np.concatenate([[state.s_m], good.s_m[keep]])
-
-        def cut(a: np.ndarray) -> np.ndarray:
-            return np.concatenate([[np.interp(state.s_m, good.s_m, a)], a[keep]])
-
-        t_then = float(np.interp(state.s_m, good.s_m, good.t_s))
-        late = (state.elapsed_s - good.state.elapsed_s) - t_then
-        power = cut(good.power_w)
-        speed = cut(good.v_mps)
-        x, y, z = self.course.enu_at(s, cut(good.n_m))
-        lat, lon, _ = self.course.to_geodetic(x, y, z)
-        # Node 0 holds the measured power (the OCP's initial state): the target is what
-        # the solution rides from there on, shaped into what a rider can follow.
+        """Advice from a solution cut at the rider's `s` (`horizon_cut`), its target and
+        cue shaped into what a rider can follow (`advice_shaping`: node 0 holds the
+        measured power, the OCP's initial state; the target is what the solution rides
+        from there on)."""
+        fields = advice_fields(self.course, state, good)
         with self._lock:
             shaped = self._shaper.shape(stamp_s, state.s_m, state.speed_mps,
-                                        self._cp.cp_in_use_w, s, power, speed)
+                                        self._cp.cp_in_use_w, fields["horizon_s_m"],
+                                        fields["horizon_power_w"], fields["horizon_speed_mps"])
             self._last_target_w = shaped["target_power_w"]
             self._stats["advice"] += 1
             cp, version = self._cp.cp_in_use_w, self.plan_version
-        return Advice(
-            stamp_s=stamp_s, state=state, **shaped,
-            horizon_s_m=s, horizon_power_w=power, horizon_speed_mps=speed,
-            horizon_n_m=cut(good.n_m), line_x_m=np.asarray(x), line_y_m=np.asarray(y),
-            line_z_m=np.asarray(z), line_lat_deg=np.asarray(lat), line_lon_deg=np.asarray(lon),
-            predicted_finish_s=good.predicted_finish_s + late,
-            w_prime_now_j=state.w_prime_j,
-            w_prime_finish_j=good.w_prime_finish_j + (state.w_prime_j - float(
-                np.interp(state.s_m, good.s_m, good.w_prime_j))),
-            solver_status=self._last_status, iterations=self._last_iterations,
-            solve_time_s=self._last_solve_time, fallback=fallback, cp_in_use_w=cp,
-            plan_version=version,
-        )
+        return Advice(stamp_s=stamp_s, state=state, **shaped, **fields,
+                      solver_status=self._last_status, iterations=self._last_iterations,
+                      solve_time_s=self._last_solve_time, fallback=fallback, cp_in_use_w=cp,
+                      plan_version=version)
 
     def _finished(self, stamp_s: float, state: RiderState) -> Advice:
-        """Past the finish line: nothing to plan; the advice says so."""
+        """Past the finish line: nothing to plan; the advice says so (coast, 0 W)."""
         self._last_status = "finished"
         self._last_iterations = 0
         self._last_solve_time = 0.0
-        s = np.array([state.s_m])
-        x, y, z = self.course.enu_at(s, np.array([state.n_m]))
-        lat, lon, _ = self.course.to_geodetic(x, y, z)
         with self._lock:
             self._last_target_w = 0.0
             self._shaper.reset()
             self._stats["advice"] += 1
             cp, version = self._cp.cp_in_use_w, self.plan_version
-        return Advice(
-            stamp_s=stamp_s, state=state, target_power_w=0.0, cue=Cue.COAST,
-            cp_in_use_w=cp, plan_version=version, horizon_s_m=s,
-            horizon_power_w=np.zeros(1), horizon_speed_mps=np.array([state.speed_mps]),
-            horizon_n_m=np.array([state.n_m]), line_x_m=np.asarray(x), line_y_m=np.asarray(y),
-            line_z_m=np.asarray(z), line_lat_deg=np.asarray(lat), line_lon_deg=np.asarray(lon),
-            predicted_finish_s=state.elapsed_s, w_prime_now_j=state.w_prime_j,
-            w_prime_finish_j=state.w_prime_j, solver_status="finished", iterations=0,
-            solve_time_s=0.0,
-        )
+        return Advice(stamp_s=stamp_s, state=state, target_power_w=0.0, cue=Cue.COAST,
+                      **finished_fields(self.course, state), solver_status="finished",
+                      iterations=0, solve_time_s=0.0, cp_in_use_w=cp, plan_version=version)
 
     # ---- diagnostics and persistence ------------------------------------------------------------
     def diagnostics(self, stamp_s: float) -> list[Diagnostic]:
-        """Solver health, input freshness per topic, rejected inputs, fallbacks."""
+        """Solver health, the CP belief, input freshness per topic, rejected inputs."""
         st = self.settings
         with self._lock:
-            counters = dict(self._estimator.counters)
+            rejects = {k: v for k, v in self._estimator.counters.items()
+                       if not k.endswith("_accepted")}
             last_input = dict(self._last_input)
             stats = dict(self._stats)
-        out = []
-        failures = self._consecutive_failures
-        if self._last_status == ON_PLAN:
-            level, msg = Level.OK, "on the plan (W' within the band): no replan needed"
-        elif stats.get("solves", 0) == 0:
-            level, msg = Level.OK, "no solve yet"
-        elif failures == 0:
-            level, msg = Level.OK, f"solved ({self._last_status})"
-        else:
-            level = Level.ERROR if failures >= st.failures_for_error else Level.WARN
-            msg = (f"{failures} failed solve(s) in a row ({self._last_status}): "
-                   "last good advice in force")
-        values = {"status": self._last_status, "iterations": str(self._last_iterations),
-                  "consecutive_failures": str(failures),
-                  **{k: str(stats.get(k, 0)) for k in
-                     ("solves", "failures", "overruns", "exceptions", "fallbacks",
-                      "unconverged_solves", "course_replans_asked", "course_replans",
-                      "course_replan_failures")}, "plan_version": str(self.plan_version),
-                  "plan_status": self.plan.solver_status}
-        if not st.deterministic:
-            values["solve_time_s"] = f"{self._last_solve_time:.4f}"
-        out.append(Diagnostic(stamp_s, "itt_planner/solver", level, msg, values))
-        with self._lock:
-            out.append(self._cp.diagnostic(stamp_s))
-        for topic in ("gps", "speed", "power"):
-            seen = last_input.get(topic)
-            if seen is None:
-                out.append(Diagnostic(stamp_s, f"itt_planner/input/{topic}", Level.STALE,
-                                      "no valid sample yet", {}))
-                continue
-            age = stamp_s - seen
-            stale = age > st.stale_after_s
-            out.append(Diagnostic(
-                stamp_s, f"itt_planner/input/{topic}", Level.STALE if stale else Level.OK,
-                f"stale: last valid sample {age:.1f} s ago" if stale else "fresh",
-                {"age_s": f"{age:.3f}"}))
-        rejects = {k: v for k, v in counters.items() if not k.endswith("_accepted")}
-        new = {k: v - self._reported_rejects.get(k, 0) for k, v in rejects.items()
-               if v > self._reported_rejects.get(k, 0)}
+            rider_model = self._cp.diagnostic(stamp_s)
+        solver = solver_diagnostic(
+            stamp_s, self._last_status, self._last_status == ON_PLAN, self._last_iterations,
+            self._consecutive_failures, st.failures_for_error, stats, self.plan_version,
+            self.plan.solver_status, None if st.deterministic else self._last_solve_time)
+        inputs = input_diagnostics(stamp_s, last_input, st.stale_after_s, rejects,
+                                   self._reported_rejects)
         self._reported_rejects = rejects
-        out.append(Diagnostic(
-            stamp_s, "itt_planner/inputs_rejected", Level.WARN if new else Level.OK,
-            ("rejected since last report: " + ", ".join(f"{k}={v}" for k, v in sorted(new.items())))
-            if new else "no rejected input since last report",
-            {k: str(v) for k, v in sorted(rejects.items())}))
-        return out
+        return [solver, rider_model, *inputs]
 
     def snapshot(self) -> dict[str, Any]:
         """W' balance, the CP in use, progress and the replan clock, JSON-serialisable."""
