@@ -49,4 +49,5 @@ def ros_env(requires_ros: None, monkeypatch: pytest.MonkeyPatch) -> dict[str, st
         monkeypatch.delenv(var, raising=False)
     for var, value in localhost_env(domain).items():
         monkeypatch.setenv(var, value)
-    return dict(os.environ)
+    # Child processes' prints reach pipes as they happen (tests wait for their lines).
+    return {**os.environ, "PYTHONUNBUFFERED": "1"}
