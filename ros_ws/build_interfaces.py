@@ -73,10 +73,13 @@ def _fingerprint(versions: list[str]) -> str:
     return digest.hexdigest()
 
 
+def _site_packages() -> Path:
+    return Path(sysconfig.get_paths()["purelib"])
+
+
 def _installed(prefix: Path) -> bool:
     """The outputs other code relies on are still there (a stamp alone could lie)."""
-    site = Path(next(p for p in sys.path if p.endswith("site-packages")))
-    return ((site / "itt_msgs" / "msg" / "__init__.py").is_file()
+    return ((_site_packages() / "itt_msgs" / "msg" / "__init__.py").is_file()
             and (prefix / "lib" / "libitt_msgs__rosidl_generator_py.so").is_file()
             and (prefix / "share" / "ament_index" / "resource_index" / "packages"
                  / "itt_msgs").is_file())
@@ -125,6 +128,12 @@ def build(prefix: Path) -> None:
           f"-DCMAKE_INSTALL_PREFIX={prefix}", f"-DCMAKE_PREFIX_PATH={prefix}", *cmake_args()],
          env, log)
     _run(["cmake", "--build", str(build_dir), "--parallel", str(os.cpu_count() or 1)], env, log)
+    # CMake overwrites installed files in place, which crashes a running node or test that
+    # has the old libraries mapped; unlinked, they live on for those processes and the
+    # install writes new files.
+    for old in [*(prefix / "lib").glob("libitt_msgs__*.so"),
+                *(_site_packages() / "itt_msgs").rglob("*.so")]:
+        old.unlink()
     _run(["cmake", "--install", str(build_dir)], env, log)
 
 
@@ -153,9 +162,11 @@ def main(argv: list[str] | None = None) -> int:
             and _installed(prefix)):
         return 0
     missing = [tool for tool in ("cmake", "c++", "cc") if shutil.which(tool) is None]
+    if not (Path(sysconfig.get_paths()["include"]) / "Python.h").is_file():
+        missing.append("Python.h (python3-dev)")
     if missing:
         return _unavailable(f"cannot build the ROS messages: {', '.join(missing)} not found "
-                            f"(Debian: apt-get install cmake g++); ROS tests skip")
+                            f"(Debian: apt-get install cmake g++ python3-dev); ROS tests skip")
     started = time.monotonic()
     STATUS.unlink(missing_ok=True)
     STAMP.unlink(missing_ok=True)
