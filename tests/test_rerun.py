@@ -311,3 +311,24 @@ def test_one_stream_tees_to_several_sinks(tmp_path: Path) -> None:
     for path in paths:
         store = RrdReader(path).store().stream().collect()
         assert scalars(store, "ride_time", "/plots/power/actual")[1].tolist() == [300.0, 310.0]
+
+
+def test_log_plan_draws_the_plan_in_force(tmp_path: Path) -> None:
+    """An adopted plan (version 1) replaces the first plan's curves and ride-time samples;
+    the same version again logs nothing."""
+    course = make_course()
+    first = make_plan(course)
+    second = make_plan(course, ds_m=10.0)
+    path = tmp_path / "adopt.rrd"
+    rec = open_recording(RerunSink.parse(f"file:{path}"))
+    recorder = RideRecorder(rec, course, RIDER, first)
+    recorder.log_course()
+    recorder.log_plan(second, 1)
+    recorder.log_plan(second, 1)
+    recorder.log_state(RiderState(T0_S, 50.0, 0.0, 11.0, 0.0, 350.0, 20000.0, 0.0))
+    rec.flush()
+    rec.disconnect()
+    store = RrdReader(path).store().stream().collect()
+    _, power = scalars(store, "distance_m", "/plots/power/plan")
+    assert len(power) == first.n_nodes + second.n_nodes
+    assert recorder.plan is second
