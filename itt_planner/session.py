@@ -47,8 +47,6 @@ log = logging.getLogger(__name__)
 SESSION_METADATA = "itt_replay"
 #: IPOPT's own default for `max_wall_time`: no limit.
 NO_WALL_TIME_LIMIT_S = 1e20
-#: Solver statuses of a full-course plan that count as converged.
-CONVERGED_PLAN = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 
 
 @dataclass(frozen=True)
@@ -174,15 +172,15 @@ class RideSession:
             CourseError, RiderError, SolveError: the course, rider or plan is unusable.
             RideLogError: the output log cannot be created.
         """
-        engine = build_engine(config)
-        writer = recorder = None
-        try:
-            if output_log:
-                from itt_planner.ridelog import RideLogWriter, RideMetadata  # noqa: PLC0415
+        writer = recorder = engine = None
+        if output_log:  # before the (slow) plan: a bad path fails at once
+            from itt_planner.ridelog import RideLogWriter, RideMetadata  # noqa: PLC0415
 
-                writer = RideLogWriter(output_log, namespace=config.namespace,
-                                       metadata=RideMetadata(source="itt-planner session",
-                                                             rider=config.rider))
+            writer = RideLogWriter(output_log, namespace=config.namespace,
+                                   metadata=RideMetadata(source="itt-planner session",
+                                                         rider=config.rider))
+        try:
+            engine = build_engine(config)
             if rerun_sinks:
                 from itt_planner.rerun_log import RideRecorder  # noqa: PLC0415
                 from itt_planner.rerun_sink import RerunSink, open_recording  # noqa: PLC0415
@@ -191,7 +189,8 @@ class RideSession:
                 recorder = RideRecorder(rec, engine.course, engine.rider, engine.plan)
                 recorder.log_course()
         except BaseException:
-            engine.close()
+            if engine is not None:
+                engine.close()
             if writer is not None:
                 writer.close()
             raise
@@ -297,30 +296,32 @@ class RideSession:
     # ---- reporting ------------------------------------------------------------------
     def warnings(self) -> list[str]:
         """What the session did not use silently, one line each with its count."""
+        counts = self.engine.counts
         out = []
-        status = self.plan.solver_status
-        if status not in CONVERGED_PLAN:
-            out.append(f"the full-course plan did not converge ({status}): advice from it "
-                       "is not optimal")
+        if not counts.plan_converged:
+            out.append(f"the plan in force did not converge ({counts.plan_status}): advice "
+                       "from it is not optimal")
         if self.fallbacks:
             share = 100.0 * self.fallbacks / max(self.advice_out, 1)
             out.append(f"{self.fallbacks} of {self.advice_out} advice ({share:.1f} %) were "
                        "fallbacks: the last good advice after a failed or overrun solve")
-        counters = self.engine.counters
-        failures = counters.get("course_replan_failures", 0)
-        if failures:
-            out.append(f"{failures} of {counters.get('course_replans_asked', 0)} re-solves "
-                       "of the rest of the course failed: the plan in force stayed")
-        refits = counters.get("cp_refits", 0)
+        if counts.unconverged_solves:
+            out.append(f"{counts.unconverged_solves} of {counts.solves} horizon solves did "
+                       "not converge (a feasible iterate at the budget was advised)")
+        if counts.course_replan_failures:
+            out.append(f"{counts.course_replan_failures} of {counts.course_replans_asked} "
+                       "re-solves of the rest of the course failed: the plan in force stayed")
+        refits = counts.refits_up + counts.refits_down
         if refits:
-            out.append(f"critical power refitted {refits} time(s) from the power history "
-                       "(see the itt_planner/rider_model diagnostics)")
+            out.append(f"critical power refitted {refits} time(s) ({counts.refits_down} down, "
+                       f"{counts.refits_up} up) to {counts.cp_in_use_w:.0f} W (see the "
+                       "itt_planner/rider_model diagnostics)")
         return out
 
     def counts(self) -> dict[str, Any]:
-        """The engine's event counters plus the session's advice counts."""
-        return {**self.engine.counters, "advice_out": self.advice_out,
-                "fallbacks": self.fallbacks}
+        """The engine's events and input counters plus the session's advice counts."""
+        return {**self.engine.counters, **dataclasses.asdict(self.engine.counts),
+                "advice_out": self.advice_out, "fallbacks": self.fallbacks}
 
     # ---- persistence (a restarted node resumes with the W' it had) --------------------
     def save_state(self, path: Path) -> None:

@@ -1,10 +1,9 @@
-"""Helpers of the ROS 2 tests and the node benchmark: an isolated ROS domain on the
-loopback interface, a short ride (course, plan, ride log) and the `itt-planner`
-processes of a pipeline."""
+"""Helpers of the ROS 2 tests and the node benchmark: a short ride (course, plan, ride
+log) and the `itt-planner` processes of a pipeline (the loopback-only environment is
+the `ros_env` fixture of conftest.py, or `itt_msgs_py.dds_env.localhost_env`)."""
 
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import sys
@@ -15,18 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from itt_msgs_py.dds_env import localhost_env, random_domain_id
 
 #: POSIX stamp of the synthetic ride's start (2026-11-22 08:00 UTC).
 RIDE_T0_S = 1795334400.0
-
-
-def ros_env(domain_id: int | None = None) -> dict[str, str]:
-    """Environment of a test process: Fast DDS on loopback only, a domain of its own."""
-    env = dict(os.environ)
-    env.update(localhost_env(domain_id if domain_id is not None else random_domain_id()))
-    env["PYTHONUNBUFFERED"] = "1"
-    return env
 
 
 @dataclass(frozen=True)

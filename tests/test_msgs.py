@@ -186,6 +186,7 @@ def test_wheel_contains_the_msg_files(tmp_path: Path) -> None:
     with zipfile.ZipFile(wheel) as zf:
         for p in MSG_DIR.glob("*.msg"):
             assert zf.read(f"itt_msgs_py/msg/{p.name}").decode() == p.read_text()
+        assert "itt_msgs_py/fastdds_localhost.xml" in zf.namelist()  # the loopback profile
     # Installed from that wheel (no checkout on the path), the typestore finds the files.
     site = tmp_path / "site"
     subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target",

@@ -21,19 +21,13 @@ import typer
 from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit
 from itt_planner.errors import IttError
 
-#: Why ROS commands cannot run, when rclpy or the built messages are missing.
-NO_ROS = ("real ROS 2 (rclpy and the itt_msgs interfaces) is not installed in this Python: "
-          "`make test`/`make demo` install it on x86_64 Linux with CPython 3.11-3.13; "
-          "elsewhere use the Docker image")
-
-
 def _ros() -> None:
-    """Raise a clear error when rclpy or the project's built messages do not import."""
-    try:
-        import itt_msgs.msg  # noqa: F401,PLC0415
-        import rclpy  # noqa: F401,PLC0415
-    except ImportError as err:
-        raise IttError(f"{NO_ROS} ({err})") from None
+    """Raise set-up's one-line reason when rclpy or the built messages do not import."""
+    from itt_msgs_py.dds_env import ros_unavailable_reason  # noqa: PLC0415
+
+    reason = ros_unavailable_reason()
+    if reason is not None:
+        raise IttError(f"{reason}; elsewhere use the Docker image (see the README)")
 
 
 def _log_to_stderr() -> None:
@@ -64,6 +58,8 @@ def node_cli(
     output_log: Path = typer.Option(None, "--output-log", help="MCAP log of inputs and outputs."),
     state_file: Path = typer.Option(None, "--state-file", help="W' state file (resume)."),
     rerun: str = typer.Option(None, "--rerun", help="Rerun sink: file:X.rrd, spawn, ..."),
+    plan: Path = typer.Option(None, "--plan", help="Saved full-course plan (Plan.save)."),
+    plan_cache: Path = typer.Option(None, "--plan-cache", help="Plan cache directory."),
     as_json: bool = JSON_OPTION,
 ) -> None:
     """Run the pacing node on rclpy until Ctrl-C; arguments after `--ros-args` go to ROS."""
@@ -75,7 +71,8 @@ def node_cli(
         from itt_planner_ros import pacing_node  # noqa: PLC0415
 
         given = {"course": course, "rider": rider, "use_sim_time": use_sim_time or None,
-                 "output_log": output_log, "state_file": state_file, "rerun_sink": rerun}
+                 "output_log": output_log, "state_file": state_file, "rerun_sink": rerun,
+                 "plan": plan, "plan_cache": plan_cache}
         overrides = [Parameter(k, value=str(v) if isinstance(v, Path) else v)
                      for k, v in given.items() if v is not None]
         ros_args = list(ctx.args)
@@ -90,3 +87,61 @@ def node_cli(
     emit(result, as_json, lambda r: (f"{r['advice_out']} advice published "
                                      f"({r['fallbacks']} fallbacks); malformed input: "
                                      f"{sum(r['malformed'].values())}"))
+
+
+@app.command("play")
+def play_cli(
+    log: Path = typer.Argument(..., exists=True, dir_okay=False, help="Ride log (.mcap)."),
+    rate: float = typer.Option(1.0, "--rate", "-r", help="Playback speed factor."),
+    loop: bool = typer.Option(False, "--loop", "-l", help="Loop until Ctrl-C."),
+    clock: bool = typer.Option(False, "--clock", help="Publish /clock (for use_sim_time)."),
+    clock_hz: float = typer.Option(40.0, "--clock-hz", help="/clock rate (wall Hz)."),
+    start_offset_s: float = typer.Option(0.0, "--start-offset", help="Skip the first s."),
+    topic: list[str] = typer.Option([], "--topics", help="Only these topics (repeat)."),
+    wait_for_matched_s: float = typer.Option(
+        0.0, "--wait-for-matched", help="Wait up to s for subscribers of the input topics."),
+    namespace: str = typer.Option("/itt", "--namespace", help="Namespace of the log's topics."),
+    as_json: bool = JSON_OPTION,
+) -> None:
+    """Publish a ride log on ROS 2 like `ros2 bag play` (the log's QoS, optional /clock)."""
+    with errors_to_exit(as_json):
+        _ros()
+        _log_to_stderr()
+        from itt_planner_ros.player import PlaySettings, play  # noqa: PLC0415
+
+        settings = PlaySettings(rate=rate, loop=loop, clock_hz=clock_hz if clock else 0.0,
+                                start_offset_s=start_offset_s, topics=tuple(topic),
+                                wait_for_matched_s=wait_for_matched_s, namespace=namespace)
+        stats = play(log, settings, _stop_on_signals())
+    result = {"log": str(log), "messages": dict(stats.messages),
+              "published": stats.messages.total(), "loops": stats.loops,
+              "clock_messages": stats.clock_messages, "refused": stats.refused,
+              "unplayable": dict(stats.unplayable), "unmatched": stats.unmatched,
+              "log_errors": stats.log_errors}
+    emit(result, as_json, lambda r: f"published {r['published']} messages from {r['log']}")
+
+
+@app.command("record")
+def record_cli(
+    topics: list[str] = typer.Argument(None, help="Topics to record (fully qualified)."),
+    output: Path = typer.Option(..., "--output", "-o", help="The .mcap file to write."),
+    all_topics: bool = typer.Option(False, "--all", "-a", help="Record every ROS topic."),
+    use_sim_time: bool = typer.Option(False, "--use-sim-time", help="Log times from /clock."),
+    duration_s: float = typer.Option(None, "--duration", help="Stop after s (wall)."),
+    as_json: bool = JSON_OPTION,
+) -> None:
+    """Record ROS 2 topics to an MCAP file like `ros2 bag record` (until Ctrl-C)."""
+    with errors_to_exit(as_json):
+        _ros()
+        _log_to_stderr()
+        from itt_planner_ros.recorder import RecordSettings, record  # noqa: PLC0415
+
+        if not topics and not all_topics:
+            raise typer.BadParameter("name topics or use -a")
+        settings = RecordSettings(topics=tuple(topics or ()), all_topics=all_topics,
+                                  use_sim_time=use_sim_time)
+        stats = record(output, settings, _stop_on_signals(), duration_s)
+    result = {"output": str(output), "messages": dict(stats.messages),
+              "recorded": stats.messages.total(), "offered_qos": stats.offered_qos,
+              "skipped": stats.skipped}
+    emit(result, as_json, lambda r: f"recorded {r['recorded']} messages to {r['output']}")
