@@ -2,8 +2,9 @@
 
 For every real ride found (tests/data/ or ../shared/data/): `calibrate` on the ride
 (mass estimated unless it is not identified, then 80 kg), then `validate` with that
-rider on the ride's own course (1D forward run with the ride's power; the 1D plan with
-`--plan`). Prints one line per ride and a JSON object. Run:
+rider on the ride's own course (1D replay in still air and in the day's fitted wind, 3D
+replay in the day's wind; the 1D plan with `--plan`). First the synthetic truth of
+tests/test_calibration.py against its fit. Prints lines per ride and a JSON object. Run:
 `.venv/bin/python -m bench.bench_calibration [--plan]`.
 """
 
@@ -13,15 +14,46 @@ import json
 import sys
 import time
 
+import numpy as np
+
+from itt_planner.calibration.ride_data import air_density_kgpm3
+from itt_planner.conditions import Conditions
+from itt_planner.simulate import simulate_ride
+
 from itt_planner.calibration import CalibrationError, CalibrationOptions, calibrate
 from itt_planner.calibration.validate import validate_ride
 from itt_planner.course_loader import load_course
 from tests.real_data import RIDES, locate
 
 
+def synthetic() -> dict[str, object]:
+    """The virtual rider's ride of tests/test_calibration.py: truth against the fit."""
+    from tests.test_calibration import (  # noqa: PLC0415
+        ALT_M, TRUTH, _course, _effort_plan, _recording)
+
+    course = _course()
+    rho = float(air_density_kgpm3(ALT_M + 30.0, 15.0))
+    sim = simulate_ride(course, TRUTH, _effort_plan(course, TRUTH), policy="open_loop", seed=3,
+                        conditions=Conditions(air_density_kgpm3=rho))
+    rec = _recording(sim, np.random.default_rng(4))
+    fit = calibrate([rec], CalibrationOptions(mass_kg=TRUTH.mass_kg), courses=[course])
+    free = calibrate([rec], CalibrationOptions(), courses=[course])
+    assert fit.aero is not None and fit.cp_2p is not None and free.aero is not None
+    out = {"cda": (TRUTH.drag_area_m2, fit.aero.cda_m2, fit.aero.cda_std_m2),
+           "crr": (TRUTH.crr, fit.aero.crr, fit.aero.crr_std),
+           "cp_w": (TRUTH.critical_power_w, fit.cp_2p.cp_w, fit.cp_2p.cp_std_w),
+           "w_prime_j": (TRUTH.w_prime_j, fit.cp_2p.w_prime_j, fit.cp_2p.w_prime_std_j),
+           "mass_free_kg": (TRUTH.mass_kg, free.aero.mass_kg, free.aero.mass_std_kg),
+           "cda_mass_free": (TRUTH.drag_area_m2, free.aero.cda_m2, free.aero.cda_std_m2)}
+    for name, (truth, got, sd) in out.items():
+        print(f"synthetic {name}: truth {truth:g}, fitted {got:.5g} +- {sd:.2g} "
+              f"({100 * (got / truth - 1):+.1f} %)")
+    return out
+
+
 def main() -> None:
     with_plan = "--plan" in sys.argv
-    rows = []
+    rows: list[dict[str, object]] = [{"synthetic": synthetic()}]
     for rel in RIDES:
         path = locate(rel)
         if path is None:
@@ -43,9 +75,11 @@ def main() -> None:
         row["calibration"] = {k: v for k, v in fit.as_dict().items() if k != "mmp_w"}
         try:
             val = validate_ride(path, course, fit.rider, plan_models=("1d",) if with_plan else ())
-            phys = {k: v for k, v in val.figures["physics"][0].items()
-                    if k not in ("per_km", "per_corner")}
-            row["physics_1d"] = phys
+            row["physics"] = [{k: v for k, v in ph.items() if k not in ("per_km", "per_corner")}
+                              for ph in val.figures["physics"]]
+            row["day_wind"] = val.figures["day_wind"]
+            if "physics_3d" in val.figures:
+                row["physics_3d"] = val.figures["physics_3d"]
             if with_plan:
                 row["plan_1d"] = {k: v for k, v in val.figures["plans"][0].items()
                                   if k != "sections"}
@@ -54,14 +88,27 @@ def main() -> None:
         row["wall_s"] = round(time.perf_counter() - t0, 1)
         rows.append(row)
         a = fit.aero
-        p = row.get("physics_1d", {})
-        print(f"{path.name}: CdA " + (f"{a.cda_m2:.3f} +- {a.cda_std_m2:.3f}, crr {a.crr:.4f}"
-                                      f"{' (fixed)' if a.crr_fixed else ''}, mass {a.mass_kg:.0f}"
-                                      if a else f"refused ({fit.refusals.get('aero', '')[:80]})")
-              + (f"; CP {fit.cp_2p.cp_w:.0f} W, W' {fit.cp_2p.w_prime_j:.0f} J" if fit.cp_2p
-                 else "")
-              + (f"; 1D finish {p['finish_error_pct']:+.2f} %, MAE {p['mae_kmh']} km/h, floor "
-                 f"{p['noise_floor_kmh']} km/h" if p else f"; {row.get('validate_refused', '')}"))
+        print(f"{path.name} ({row['wall_s']} s): CdA "
+              + (f"{a.cda_m2:.3f} +- {a.cda_std_m2:.3f}, crr {a.crr:.4f}"
+                 f"{' (fixed)' if a.crr_fixed else ''}, mass {a.mass_kg:.0f} +- "
+                 f"{a.mass_std_kg:.1f} kg" if a else
+                 f"refused ({fit.refusals.get('aero', '')[:90]})")
+              + (f"; CP {fit.cp_2p.cp_w:.0f} +- {fit.cp_2p.cp_std_w:.0f} W, W' "
+                 f"{fit.cp_2p.w_prime_j:.0f} J" if fit.cp_2p else "")
+              + (f"; a_y {fit.cornering.max_lateral_accel_mps2:.2f} m/s^2" if fit.cornering
+                 else ""))
+        for ph in row.get("physics", []):
+            print(f"    {ph['model']} ({ph['conditions']}): finish {ph['finish_error_pct']:+.2f} %,"
+                  f" MAE {ph['mae_kmh']} RMSE {ph['rmse_kmh']} bias {ph['bias_kmh']} km/h, "
+                  f"{100 * ph['share_within_2kmh']:.0f} % within 2 km/h, floor "
+                  f"{ph['noise_floor_kmh']} km/h")
+        for key in ("physics_3d", "validate_refused"):
+            if key in row:
+                print(f"    {key}: {row[key]}")
+        if "plan_1d" in row:
+            pl = row["plan_1d"]
+            print(f"    plan 1d [{pl['solver_status']}]: {pl['plan_minus_ride_pct']:+.2f} % vs ride, "
+                  f"power MAE {pl['power_mae_w']} W, plan - ride by kind {pl['time_by_kind_s']}")
     print(json.dumps(rows, default=str))
 
 

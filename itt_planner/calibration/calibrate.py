@@ -195,7 +195,11 @@ def rider_yaml(result: CalibrationResult) -> str:
     fitted = ["name", "mass_kg", "drag_area_m2", "crr", "critical_power_w", "w_prime_j",
               "max_power_w", "drivetrain_efficiency", "max_lateral_accel_mps2"]
     base = PRESETS[opts.preset]
-    lines = [f"# itt-planner calibrate: {', '.join(result.sources)}",
+    winds = [] if result.aero is None else [
+        f"# wind of the day fitted on {src}: {w['speed_kmh']} +- {w['std_kmh']} km/h from "
+        f"{w['from_deg']:.0f} deg (a condition, not a rider field)"
+        for src, w in zip(result.sources, result.aero.as_dict()["wind"], strict=False)]
+    lines = [f"# itt-planner calibrate: {', '.join(result.sources)}", *winds,
              *(f"# refused {k}: {v}" for k, v in result.refusals.items()),
              f"preset: {opts.preset}"]
     for name in fitted:

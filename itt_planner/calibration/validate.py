@@ -17,7 +17,7 @@ import numpy as np
 
 from itt_planner.calibration.aero import fit_day_wind, wind_meteo
 from itt_planner.calibration.calibrate import CalibrationOptions, calibrate, load_rides
-from itt_planner.calibration.forward import ForwardRun, forward_1d
+from itt_planner.calibration.forward import ForwardRun, forward_1d, forward_3d
 from itt_planner.calibration.physics_check import physics_check
 from itt_planner.calibration.plan_check import plan_check
 from itt_planner.calibration.ride_data import CalibrationError, RideSeries
@@ -52,10 +52,13 @@ def ride_conditions(ride: RideSeries, wind_enu_mps: np.ndarray | None = None) ->
 
 
 def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *,
-                  plan_models: tuple[str, ...] = (), temperature_c: float | None = None,
+                  models: tuple[str, ...] = ("1d", "3d"), plan_models: tuple[str, ...] = (),
+                  temperature_c: float | None = None,
                   cache_dir: Path = Path(".itt_cache")) -> Validation:
-    """Physics check (1D forward runs in still air and in the day's wind) and, for each
-    of `plan_models`, the plan check (at the ride's air density, in the day's wind).
+    """Physics check (the 1D model in still air and in the day's wind, the 3D model in the
+    day's wind, as `models` asks) and, for each of `plan_models`, the plan check (at the
+    ride's air density, in the day's wind). A 3D replay that stalls is reported, not
+    raised (`physics_3d`).
 
     The day's wind is fitted to the ride for this rider (`aero.fit_day_wind`): two
     numbers for the whole ride, a condition of the day like the air density, not a
@@ -69,7 +72,7 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
     series = ride if isinstance(ride, RideSeries) else load_rides([ride], temperature_c)[0]
     on_course = ride_on_course(series, course)
     conditions = ride_conditions(series)
-    runs = [forward_1d(course, rider, on_course, conditions)]
+    runs = [forward_1d(course, rider, on_course, conditions)] if "1d" in models else []
     wind_note: dict[str, Any] = {}
     try:
         wind = fit_day_wind(series, rider.mass_kg, rider.crr, rider.drag_area_m2,
@@ -78,7 +81,8 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
         wind_note = {"not_fitted": str(err)}
     else:
         conditions = ride_conditions(series, wind)
-        runs.append(forward_1d(course, rider, on_course, conditions, "day wind"))
+        if "1d" in models:
+            runs.append(forward_1d(course, rider, on_course, conditions, "day wind"))
         speed_kmh, from_deg = wind_meteo(wind)
         wind_note = {"speed_kmh": round(speed_kmh, 1), "from_deg": round(from_deg, 0)}
     figures: dict[str, Any] = {
@@ -87,11 +91,14 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
         "covered_m": round(float(on_course.s_m[-1] - on_course.s_m[0]), 1),
         "air_density_kgpm3": round(conditions.air_density_kgpm3, 4),
         "day_wind": wind_note,
-        "physics": [physics_check(run, on_course, course) for run in runs],
-        "physics_3d": ("not run: the 3D virtual rider (simulate.simulate_ride) follows a "
-                       "plan's line and power by distance; replaying a measured ride through "
-                       "it is not implemented yet"),
     }
+    if "3d" in models:
+        try:
+            runs.append(forward_3d(course, rider, on_course, conditions,
+                                   "day wind" if "speed_kmh" in wind_note else "still air"))
+        except CalibrationError as err:
+            figures["physics_3d"] = str(err)
+    figures["physics"] = [physics_check(run, on_course, course) for run in runs]
     plans = []
     if plan_models:
         from itt_planner.ocp import OcpSettings  # noqa: PLC0415  (CasADi OCP, lazy)
@@ -110,7 +117,8 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
 
 
 def holdout(rides: list[str | Path], courses: list[Course],
-            options: CalibrationOptions = CalibrationOptions()) -> dict[str, Any]:
+            options: CalibrationOptions = CalibrationOptions(),
+            models: tuple[str, ...] = ("1d",)) -> dict[str, Any]:
     """Calibrate on all rides but one, validate (physics) on that one, for each ride.
 
     Raises:
@@ -123,13 +131,14 @@ def holdout(rides: list[str | Path], courses: list[Course],
         train = [r for j, r in enumerate(rides) if j != k]
         try:
             fit = calibrate(train, options, courses=[c for j, c in enumerate(courses) if j != k])
-            val = validate_ride(ride, courses[k], fit.rider, temperature_c=options.temperature_c)
+            val = validate_ride(ride, courses[k], fit.rider, models=models,
+                                temperature_c=options.temperature_c)
         except CalibrationError as err:
             out.append({"held_out": str(ride), "refused": str(err)})
             continue
-        phys = val.figures["physics"][-1]
+        phys = val.figures["physics"][-1]  # the last run: in the day's wind when fitted
         out.append({"held_out": str(ride), "trained_on": [str(r) for r in train],
-                    "conditions": phys["conditions"],
+                    "model": phys["model"], "conditions": phys["conditions"],
                     "cda_m2": round(fit.rider.drag_area_m2, 4),
                     "mass_kg": round(fit.rider.mass_kg, 1),
                     "refusals": fit.refusals,

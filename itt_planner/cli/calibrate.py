@@ -82,10 +82,12 @@ def _human_validation(r: dict[str, Any]) -> str:
             for h in r["holdout"])
     lines = [f"{r['ride']} on {r['course']} ({r['covered_m'] / 1000:.1f} km), rider {r['rider']}:"]
     for p in r["physics"]:
-        lines.append(f"  physics {p['model']}: finish {p['finish_s']} s vs {p['ride_moving_s']} s "
+        lines.append(f"  physics {p['model']} ({p['conditions']}): finish {p['finish_s']} s vs {p['ride_moving_s']} s "
                      f"({p['finish_error_pct']:+.2f} %), speed MAE {p['mae_kmh']} RMSE "
                      f"{p['rmse_kmh']} bias {p['bias_kmh']} km/h, {100 * p['share_within_2kmh']:.0f}"
                      f" % within 2 km/h; noise floor {p['noise_floor_kmh']} km/h")
+    if "physics_3d" in r:
+        lines.append(f"  physics 3d: {r['physics_3d']}")
     for p in r.get("plans", []):
         lines.append(f"  plan {p['model']} [{p['solver_status']}]: {p['plan_finish_s']} s vs ride "
                      f"{p['ride_moving_s']} s ({p['plan_minus_ride_pct']:+.2f} %), power MAE "
@@ -100,6 +102,8 @@ def validate_cli(
                                       help="The ride's course (default: the ride's own track)."),
     rider: str | None = typer.Option(None, "--rider", help="Rider preset or YAML (not with "
                                      "--holdout, which calibrates its own)."),
+    model: list[str] = typer.Option(["1d", "3d"], "--model",
+                                    help="Models to replay the ride's power through (repeat)."),
     plan_model: list[str] = typer.Option([], "--plan-model",
                                          help="Also check the optimal plan (3d, 1d; repeat)."),
     holdout_flag: bool = typer.Option(False, "--holdout",
@@ -120,12 +124,13 @@ def validate_cli(
         courses = [load_course(course or str(r)) for r in rides]
         if holdout_flag:
             emit(holdout(list(rides), courses, CalibrationOptions(
-                mass_kg=mass_kg, temperature_c=temperature_c)), as_json, _human_validation)
+                mass_kg=mass_kg, temperature_c=temperature_c), tuple(model)),
+                as_json, _human_validation)
             return
         if len(rides) != 1 or rider is None:
             raise CalibrationError("validate takes one ride and --rider (or --holdout with "
                                    "several rides)")
-        val = validate_ride(rides[0], courses[0], load_rider(rider),
+        val = validate_ride(rides[0], courses[0], load_rider(rider), models=tuple(model),
                             plan_models=tuple(plan_model), temperature_c=temperature_c,
                             cache_dir=cache_dir)
         if report is not None:
