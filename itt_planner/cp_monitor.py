@@ -6,12 +6,17 @@ CP is wrong the balance drifts, and what the rider does reveals it, in two ways:
 - DOWN, a rider out of W' the balance still shows: the rider WAS following advice
   above CP (delivering at least `follow_ratio` of the advised power, above CP, over the
   `follow_window_s` before), and then, over `window_s`, holds just below CP
-  (`below_cp`) and clearly short of the advice (`min_shortfall`), which stays clearly
-  above CP (`above_cp`), while the balance still shows more than `min_w_prime` of W'.
+  (`below_cp`), never surging above it (the `surge_quantile` of its power stays below
+  CP: an exhausted rider cannot exceed CP, a rider easing off by choice does) and
+  clearly short of the advice (`min_shortfall`), which stays clearly above CP
+  (`above_cp`), while the balance still shows more than `min_w_prime` of W'.
   An exhausted rider holds what it still can, its true CP: the refitted CP is never
   below the power held (on the real Zwift Bologna ride a rider at 285 W against 303 W
   advised was refitted to 262 W from the history alone, and the balance at 262 W then
-  went below zero 12 times), and a change under `min_change` is none.
+  went below zero 12 times; a 20 s dip to 267 W against 301 W advised, right after a
+  minute at 295 W following it, was refitted to 268 W while the rider was back above
+  330 W within 15 s: hence the 30 s window and the surge test), and a change under
+  `min_change` is none.
   A rider who was NOT following (a steady ride below CP against higher advice, a hot
   start that ignores it) makes a choice, not a limit: no refit. (On a
   real ride the old detector, without the following condition, refitted 290 -> 263 W
@@ -54,6 +59,7 @@ class CpMonitorSettings:
         above_cp: ... with the mean advice this fraction above the CP in use ...
         below_cp: ... and the mean power within this fraction below that CP ...
         min_shortfall: ... and at least this fraction below the mean advice ...
+        surge_quantile: ... and this quantile of the power below CP ...
         min_w_prime: ... while the balance shows more than this fraction of W'.
         follow_window_s: before the shortfall window, the rider followed the advice
             over this much stamp time ...
@@ -67,10 +73,11 @@ class CpMonitorSettings:
             [down_factor CP, CP].
     """
 
-    window_s: float = 20.0
+    window_s: float = 30.0
     above_cp: float = 0.05
     below_cp: float = 0.10
     min_shortfall: float = 0.10
+    surge_quantile: float = 0.9
     min_w_prime: float = 0.05
     follow_window_s: float = 60.0
     follow_ratio: float = 0.90
@@ -183,6 +190,7 @@ class CpMonitor:
         if (mean_target < cp * (1 + st.above_cp)
                 or not cp * (1 - st.below_cp) <= mean_power < cp
                 or mean_power > (1 - st.min_shortfall) * mean_target
+                or float(np.quantile(recent[:, 2], st.surge_quantile)) >= cp
                 or state.w_prime_j < st.min_w_prime * self.rider.w_prime_j):
             return None
         followed_target, followed_power = float(before[:, 1].mean()), float(before[:, 2].mean())
