@@ -99,7 +99,7 @@ def validation_figures(val: Validation) -> list[str]:
         ax = fig.subplots()
         ax.plot(s, 3.6 * val.on_course.v_mps, color="0.4", lw=1, label="ride (5 s)")
         for run in val.runs:
-            ax.plot(s, 3.6 * run.v_mps, lw=1, label=f"{run.model} with the ride's power")
+            ax.plot(s, 3.6 * run.v_mps, lw=1, label=f"{run.model} ({run.label}), ride's power")
         ax.set_xlabel("distance (km)")
         ax.set_ylabel("speed (km/h)")
         ax.legend()
