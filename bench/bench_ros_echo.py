@@ -30,6 +30,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -43,7 +44,7 @@ TIMEOUT_S = 1.0
 WARM_UP = 20
 
 
-def _fix() -> object:
+def _fix() -> Any:
     """A GPS fix like the demo ride's (frame `gps`, a fix, diagonal covariance)."""
     from sensor_msgs.msg import NavSatFix, NavSatStatus
 
@@ -142,7 +143,7 @@ def echo_round_trips_ms(env: dict[str, str], log: Path, count: int = 200,
         if udp is not None:
             udp.extend(_udp_round_trips_ms(int(line[2]), serialize_message(fix), count,
                                            period_s))
-        arrived: list[tuple[float, bytes]] = []
+        arrived: list[tuple[float, Any]] = []  # raw: the CDR bytes
         with edge_node("bench_ping") as node:
             ping = node.create_publisher(NavSatFix, PING, qos_profile_sensor_data)
             pong = node.create_subscription(

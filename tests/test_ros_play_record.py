@@ -35,7 +35,7 @@ from itt_planner.ridelog import RideLogReader, message_count  # noqa: E402
 from itt_planner_ros.player import PlaySettings, play  # noqa: E402
 from itt_planner_ros.ros_types import (  # noqa: E402
     edge_node,
-    offered_qos_yaml as offers_yaml,
+    offers_yaml,
     replay_qos,
 )
 
@@ -135,9 +135,9 @@ def test_play_clock_and_record_all_across_processes(tmp_path: Path,
         assert got[topic_name] == (msgtype, n), _missing(payloads[topic_name],
                                                          _payloads(DEMO_BAG)[topic_name])
     for topic_name, data in _payloads(DEMO_BAG).items():
-        assert [p[:len(d)] for p, d in zip(payloads[topic_name], data)] == data
+        assert [p[:len(d)] for p, d in zip(payloads[topic_name], data, strict=True)] == data
         assert all(p[len(d):] == bytes(len(p) - len(d)) and len(p) % 4 == 0
-                   for p, d in zip(payloads[topic_name], data))
+                   for p, d in zip(payloads[topic_name], data, strict=True))
     assert recorded["messages"] == {t: n for t, (_, n) in got.items()}
     assert not recorded["skipped"]
     # /clock was played and recorded, and the log times are ROS time from it.

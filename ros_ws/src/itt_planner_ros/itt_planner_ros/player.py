@@ -19,8 +19,9 @@ topic at its log time scaled by `rate`, with the QoS its publishers offered when
 recorded (`offered_qos_profiles`, read as `ros2 bag play` reads it), or, for a channel
 without that record, the interface's QoS of a known topic and ROS 2's default otherwise.
 All publishers are created before the first message, so subscribers can match first
-(`wait_for_matched_s` waits for them). With `clock_hz` the playback time is published
-on `/clock` (rosgraph_msgs/Clock, clock QoS) for nodes running with `use_sim_time`.
+(`wait_for_matched_s` waits for them, then `MATCH_SETTLE_S` more). With `clock_hz` the
+playback time is published on `/clock` (rosgraph_msgs/Clock, clock QoS) for nodes
+running with `use_sim_time`, from the start time while waiting for subscribers.
 """
 
 from __future__ import annotations
@@ -161,11 +162,7 @@ def play(log_path: str | Path, settings: PlaySettings = PlaySettings(),
 
 def _first_log_time_ns(path: Path) -> int:
     """Log time of the first message (0 for a log without any)."""
-    records = RideLogReader(path).records()
-    try:
-        return next((r.log_time_ns for r in records), 0)
-    finally:
-        records.close()
+    return next((r.log_time_ns for r in RideLogReader(path).records()), 0)
 
 
 def _channels(path: Path, namespace: str) -> list[_Channel]:
@@ -203,6 +200,9 @@ class _Player:
                 channel, known[channel.topic].qos if channel.topic in known else DEFAULT_QOS)
         self._clock = (node.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
                        if settings.clock_hz > 0 else None)
+        absent = sorted(set(settings.topics) - {c.topic for c in channels})
+        if absent:
+            log.warning('%s: no messages on %s in this log', path, ', '.join(absent))
 
     def _publisher(self, channel: _Channel, fallback: topics.QoS) -> Any | None:
         """The channel's publisher; None (logged) when it cannot be played here."""
@@ -284,8 +284,8 @@ class _Player:
                         next_clock_wall_ns = now + clock_period_ns
                 if now >= due_wall_ns:
                     break
-                wake = due_wall_ns if self._clock is None else min(due_wall_ns,
-                                                                    next_clock_wall_ns)
+                wake = (due_wall_ns if self._clock is None
+                        else min(due_wall_ns, next_clock_wall_ns))
                 stop.wait(max(wake - now, 0) * 1e-9)
             publisher = self._publishers[key]
             if publisher is None:

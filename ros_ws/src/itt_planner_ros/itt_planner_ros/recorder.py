@@ -52,7 +52,7 @@ from itt_planner.ridelog import MESSAGE_ENCODING, RawRecord, RideLogWriter, SCHE
 from itt_planner_ros.ros_types import (
     edge_node,
     message_class,
-    offered_qos_yaml,
+    offers_yaml,
     request_qos,
     RosTypeError,
 )
@@ -207,7 +207,7 @@ class _Recorder:
             self._skip(topic, str(err))
             return
         qos = request_qos(offers, RECORD_DEPTH)
-        offered = offered_qos_yaml(offers)
+        offered = offers_yaml(offers)
         schema = msgdef(msgtype).encode()
 
         def write(data: bytes, info: dict[str, Any]) -> None:
@@ -221,8 +221,9 @@ class _Recorder:
                 offered_qos_profiles=offered))
             self.stats.messages[topic] += 1
 
+        # rclpy hands a two-argument callback the message info too (not in its hints).
         self._subscriptions[topic] = self.node.create_subscription(
-            cls, topic, write, qos, raw=True)
+            cls, topic, write, qos, raw=True)  # type: ignore[arg-type]
         if topic == CLOCK_TOPIC and self._clock_subscription is not None:
             self.node.destroy_subscription(self._clock_subscription)
             self._clock_subscription = None

@@ -17,7 +17,7 @@
 - `message_class`: the generated class of `pkg/msg/Name`, by importlib of `pkg.msg`
   (what `rosidl_runtime_py.utilities.get_message` does; that package is not on PyPI).
 - `qos_profile`: the interface's plain QoS (`itt_msgs_py.topics.QoS`) as a QoSProfile.
-- `offered_qos_yaml` / `replay_qos` / `request_qos`: QoS as rosbag2 records and uses it.
+- `offers_yaml` / `replay_qos` / `request_qos`: QoS as rosbag2 records and uses it.
   The recorder stores what each publisher offered, as the graph reports it (Fast DDS does
   not send history and depth: `history: unknown, depth: 0`, as in rosbag2's own bags);
   the player offers the recorded reliability and durability again; the recorder asks for
@@ -121,7 +121,7 @@ def _duration(time: QosTime) -> Duration:
     return Duration(seconds=time.sec, nanoseconds=time.nsec)
 
 
-def offered_qos_yaml(offers: Sequence[QoSProfile]) -> str:
+def offers_yaml(offers: Sequence[QoSProfile]) -> str:
     """The `offered_qos_profiles` value (rosbag2 metadata v9 YAML) of these offers."""
     profiles = [Qos(
         history=QosHistory[p.history.name], depth=p.depth,
