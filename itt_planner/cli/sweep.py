@@ -29,7 +29,8 @@ def _human(r: dict[str, Any]) -> str:
 def sweep_cli(
     spec: Path = typer.Argument(..., help="Sweep spec (YAML): courses, riders, axes."),
     output: Path = typer.Option(..., "--output", "-o",
-                                help="Result dataset directory (Parquet parts); resumed if it exists."),
+                                help="Result dataset directory (Parquet parts); resumed if "
+                                     "it exists."),
     address: str | None = typer.Option(None, "--address",
                                        help="Join this Ray cluster (host:port); default: a private "
                                             "local instance on 127.0.0.1."),
@@ -69,3 +70,38 @@ def sweep_report_cli(
         info = write_sweep_report(results, output)
         emit(info, as_json, lambda r: (f"{r['output']}: {r['figures']} figures from "
                                        f"{r['converged']} converged of {r['cases']} cases"))
+
+
+@app.command("calibrate-many")
+def calibrate_many_cli(
+    folders: list[Path] = typer.Argument(..., help="One folder of ride files per rider "
+                                                    "(the folder name is the rider's)."),
+    output: Path = typer.Option(..., "--output", "-o",
+                                help="Folder for <rider>.rider.yaml and calibration.json."),
+    address: str | None = typer.Option(None, "--address",
+                                       help="Join this Ray cluster; default: local on 127.0.0.1."),
+    workers: int | None = typer.Option(None, "--workers", min=1,
+                                       help="CPUs of the local Ray instance (default: all)."),
+    mass_kg: float | None = typer.Option(None, "--mass-kg",
+                                         help="Rider + bike mass of every rider "
+                                              "(default: estimated)."),
+    temperature_c: float | None = typer.Option(None, "--temperature-c",
+                                               help="Air temperature (default: the record's)."),
+    allow_virtual: bool = typer.Option(False, "--allow-virtual",
+                                       help="Fit rides whose speed is simulated anyway."),
+    as_json: bool = JSON_OPTION,
+) -> None:
+    """Calibrate many riders in parallel on Ray (`calibrate` on each folder's rides)."""
+    from itt_planner.calibration import CalibrationOptions  # noqa: PLC0415
+    from itt_planner.sweep.calibrate_many import calibrate_many  # noqa: PLC0415
+
+    with errors_to_exit(as_json):
+        info = calibrate_many(list(folders), output, CalibrationOptions(
+            mass_kg=mass_kg, temperature_c=temperature_c, allow_virtual=allow_virtual),
+            address=address, workers=workers, progress=progress_enabled())
+        emit(info, as_json, _human_calibrations)
+
+
+def _human_calibrations(r: dict[str, Any]) -> str:
+    failed = f"; FAILED {', '.join(r['failed'])}" if r["failed"] else ""
+    return f"{r['output']}: {r['fitted']} of {r['riders']} riders fitted in {r['wall_s']} s{failed}"

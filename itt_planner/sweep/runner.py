@@ -167,6 +167,7 @@ def _row(ray: Any, ref: Any, case: Case) -> dict[str, Any]:
         # Its other queued case fails with it (max_task_retries=0); --retry-failed re-runs both.
         reason = f"the worker died while this case was queued or solving ({type(err).__name__})"
     except ray.exceptions.RayTaskError as err:
-        reason = f"error in the worker: {str(err).splitlines()[0] if str(err) else type(err).__name__}"
+        first_line = str(err).splitlines()[0] if str(err) else type(err).__name__
+        reason = f"error in the worker: {first_line}"
     log.warning("sweep case %s: %s", case.key, reason)
     return failed_row(case, reason)

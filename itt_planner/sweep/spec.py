@@ -1,4 +1,4 @@
-"""The sweep spec: which courses, riders and conditions a scenario sweep covers (YAML -> frozen dataclasses).
+"""The sweep spec: the courses, riders and conditions a sweep covers (YAML -> frozen dataclasses).
 
 A spec file is a mapping (edge units, as on the command line: km/h, degrees)::
 
@@ -236,7 +236,8 @@ def _grid(axes: Mapping[str, Any], where: str, base: Grid) -> Grid:
             raise SweepSpecError(f"{where}.mu: grip must be in (0, 2], got {mu}")
         changes["mu"] = mu
     if "wprime_model" in axes:
-        raw = axes["wprime_model"] if isinstance(axes["wprime_model"], list) else [axes["wprime_model"]]
+        raw = axes["wprime_model"]
+        raw = raw if isinstance(raw, list) else [raw]
         try:
             changes["wprime_models"] = tuple(WPrimeModel(str(v)) for v in raw)
         except ValueError:
@@ -272,7 +273,8 @@ def _case_grid(entry: Any, i: int, full: Grid, base_dir: Path) -> Grid:
 
 def _equipment(raw: Any) -> tuple[Equipment, ...]:
     if not isinstance(raw, dict) or not raw:
-        raise SweepSpecError(f"axes.equipment: expected a mapping name -> rider fields, got {raw!r}")
+        raise SweepSpecError(f"axes.equipment: expected a mapping name -> rider fields, "
+                             f"got {raw!r}")
     out = []
     for name, fields in raw.items():
         where = f"axes.equipment.{name}"
