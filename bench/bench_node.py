@@ -8,7 +8,7 @@ shipped profile, a domain of its own) on the hairpin test course and publishes a
 real time); the node replans at 1 Hz of stamp time. An advice carries the stamp of the
 newest input at its replan, i.e. of the GPS fix published at that instant: its latency is
 the wall time from that fix's publication to the advice's arrival (tick wait + horizon
-solve + DDS both ways).
+solve + DDS both ways). Every advice is a horizon solve (`on_plan_band_j:=0.0`).
 
 Baseline, measured in the same run: the rclpy publish -> subscribe echo round trip
 across two processes (`bench.bench_ros_echo`), the transport cost the node's latency
@@ -49,8 +49,10 @@ def node_latency_ms(ride: Ride, folder: Path, seconds: float, env: dict[str, str
     """Latencies (ms) of the advice of one node run, their solve times (ms), and the
     number of GPS fixes sent."""
     folder.mkdir(parents=True, exist_ok=True)
-    node = Proc(cli("node", "--course", str(ride.course), "--plan", str(ride.plan), "--json"),
-                env, folder / "node.log")
+    # on_plan_band_j 0: every advice is a horizon solve (the rider here follows the plan,
+    # so with the default band the advice would be the plan itself, no solve).
+    node = Proc(cli("node", "--course", str(ride.course), "--plan", str(ride.plan), "--json",
+                    "--ros-args", "-p", "on_plan_band_j:=0.0"), env, folder / "node.log")
     arrivals: list[tuple[float, bytes]] = []
     sent: dict[float, float] = {}  # GPS stamp -> wall time published
     try:

@@ -10,6 +10,7 @@ rosbag2 read it back.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from io import StringIO
 
 from rosbags.interfaces import (
@@ -49,9 +50,14 @@ def to_rosbags(qos: QoS) -> Qos:
 
 def offered_qos_yaml(*profiles: QoS) -> str:
     """The `offered_qos_profiles` value for a topic whose publishers offered `profiles`."""
+    return qos_yaml([to_rosbags(q) for q in profiles])
+
+
+def qos_yaml(profiles: Sequence[Qos]) -> str:
+    """The `offered_qos_profiles` value (rosbag2 metadata v9 YAML) of rosbags profiles."""
     stream = StringIO()
     yaml = YAML(typ="safe")
     yaml.default_flow_style = False
-    yaml.dump(dump_qos_v9([to_rosbags(q) for q in profiles]), stream)
+    yaml.dump(dump_qos_v9(list(profiles)), stream)
     return stream.getvalue().strip()
 

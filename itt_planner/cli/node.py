@@ -99,7 +99,7 @@ def play_cli(
     start_offset_s: float = typer.Option(0.0, "--start-offset", help="Skip the first s."),
     topic: list[str] = typer.Option([], "--topics", help="Only these topics (repeat)."),
     wait_for_matched_s: float = typer.Option(
-        0.0, "--wait-for-matched", help="Wait up to s for subscribers of the input topics."),
+        0.0, "--wait-for-matched", help="Wait up to s for subscribers of the input topics (and of /clock with --clock)."),
     namespace: str = typer.Option("/itt", "--namespace", help="Namespace of the log's topics."),
     as_json: bool = JSON_OPTION,
 ) -> None:
@@ -113,11 +113,7 @@ def play_cli(
                                 start_offset_s=start_offset_s, topics=tuple(topic),
                                 wait_for_matched_s=wait_for_matched_s, namespace=namespace)
         stats = play(log, settings, _stop_on_signals())
-    result = {"log": str(log), "messages": dict(stats.messages),
-              "published": stats.messages.total(), "loops": stats.loops,
-              "clock_messages": stats.clock_messages, "refused": stats.refused,
-              "unplayable": dict(stats.unplayable), "unmatched": stats.unmatched,
-              "log_errors": stats.log_errors}
+    result = {"log": str(log), **stats.as_dict()}
     emit(result, as_json, lambda r: f"published {r['published']} messages from {r['log']}")
 
 
@@ -141,7 +137,5 @@ def record_cli(
         settings = RecordSettings(topics=tuple(topics or ()), all_topics=all_topics,
                                   use_sim_time=use_sim_time)
         stats = record(output, settings, _stop_on_signals(), duration_s)
-    result = {"output": str(output), "messages": dict(stats.messages),
-              "recorded": stats.messages.total(), "offered_qos": stats.offered_qos,
-              "skipped": stats.skipped}
+    result = {"output": str(output), **stats.as_dict()}
     emit(result, as_json, lambda r: f"recorded {r['recorded']} messages to {r['output']}")

@@ -31,7 +31,6 @@ from __future__ import annotations
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 import importlib
-from io import StringIO
 from typing import Any
 
 import rclpy
@@ -53,10 +52,10 @@ from rosbags.interfaces import (
     QosReliability,
     QosTime,
 )
-from rosbags.rosbag2.metadata import dump_qos_v9, parse_qos
-from ruamel.yaml import YAML
+from rosbags.rosbag2.metadata import parse_qos
 
 from itt_msgs_py import topics
+from itt_msgs_py.qos import qos_yaml
 from itt_planner.errors import IttError
 
 #: ROS 2's default profile (reliable, volatile, keep last 10): rosbag2 plays a topic
@@ -132,11 +131,7 @@ def offers_yaml(offers: Sequence[QoSProfile]) -> str:
         liveliness_lease_duration=_qos_time(p.liveliness_lease_duration),
         avoid_ros_namespace_conventions=p.avoid_ros_namespace_conventions,
     ) for p in offers]
-    stream = StringIO()
-    yaml = YAML(typ='safe')
-    yaml.default_flow_style = False
-    yaml.dump(dump_qos_v9(profiles), stream)
-    return stream.getvalue().strip()
+    return qos_yaml(profiles)
 
 
 def _agreed(values: Sequence[Any], allowed: Sequence[Any], default: Any) -> Any:
