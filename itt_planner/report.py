@@ -250,7 +250,7 @@ def draw_corner(fig: Figure | SubFigure, plan: Plan, course: Course, corner: Cor
                  f"R {corner.min_radius_m:.0f} m, {math.degrees(corner.angle_rad):.0f} deg")
 
 
-def _png(fig: Figure, dpi: int) -> bytes:
+def png_bytes(fig: Figure, dpi: int) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     return buf.getvalue()
@@ -265,15 +265,15 @@ def render_html(plan: Plan, course: Course, rider: Rider | None = None,
     with mpl.rc_context({"figure.constrained_layout.use": True}):
         fig = Figure(figsize=(11, 8 if ride is None else 10))
         _draw_top(fig, plan, course, rider, ride)
-        images = [_png(fig, settings.dpi)]
+        images = [png_bytes(fig, settings.dpi)]
         for corner in tightest_corners(course, settings.max_corners):
             fig = Figure(figsize=(11, 4.2))
             draw_corner(fig, plan, course, corner, settings.corner_margin_m, ride)
-            images.append(_png(fig, settings.dpi))
+            images.append(png_bytes(fig, settings.dpi))
     table = summary(plan, course, rider) if ride is None else ride_summary(ride, plan, course,
                                                                             rider)
     rows = "".join(f"<tr><th>{html.escape(k.replace('_', ' '))}</th>"
-                   f"<td>{html.escape(_cell(v))}</td></tr>" for k, v in table.items())
+                   f"<td>{html.escape(table_cell(v))}</td></tr>" for k, v in table.items())
     figures = "".join(f'<p><img alt="figure {i}" src="data:image/png;base64,'
                       f'{base64.b64encode(png).decode()}"></p>' for i, png in enumerate(images))
     kind = "report" if ride is None else "ride report"
@@ -292,7 +292,7 @@ def _draw_top(fig: Figure | SubFigure, plan: Plan, course: Course, rider: Rider 
         draw_ride_overview(fig, ride, plan, course, rider)
 
 
-def _cell(value: object) -> str:
+def table_cell(value: object) -> str:
     """A table cell: counts by name as `name: n, ...`, None as a dash."""
     if isinstance(value, dict):
         return ", ".join(f"{k}: {v}" for k, v in value.items())
@@ -312,7 +312,7 @@ def render_png(plan: Plan, course: Course, rider: Rider | None = None,
         _draw_top(top, plan, course, rider, ride)
         for sub, corner in zip(rest, corners, strict=True):
             draw_corner(sub, plan, course, corner, settings.corner_margin_m, ride)
-        return _png(fig, settings.dpi)
+        return png_bytes(fig, settings.dpi)
 
 
 def write_report(plan: Plan, course: Course, output: str | Path, rider: Rider | None = None,

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import base64
 import html
-import io
 import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -21,6 +20,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from itt_planner.calibration.ride_data import CalibrationError
+from itt_planner.report import png_bytes
 
 if TYPE_CHECKING:
     from itt_planner.calibration.calibrate import CalibrationResult
@@ -28,9 +28,8 @@ if TYPE_CHECKING:
 
 
 def _png(fig: Figure) -> str:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    return base64.b64encode(buf.getvalue()).decode()
+    """The figure as base64 PNG text for an <img> data URL."""
+    return base64.b64encode(png_bytes(fig, 90)).decode()
 
 
 def _page(title: str, summary: dict[str, Any], images: list[str]) -> str:

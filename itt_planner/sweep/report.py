@@ -32,7 +32,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from itt_planner.errors import IttError
-from itt_planner.report import DPI, MPS_TO_KMH, _cell, _png
+from itt_planner.report import DPI, MPS_TO_KMH, table_cell, png_bytes
 from itt_planner.sweep.solve import CONVERGED
 from itt_planner.sweep.store import ResultStore
 
@@ -206,9 +206,9 @@ def render_html(all_rows: list[dict[str, Any]]) -> tuple[str, int]:
     """The report page and its figure count."""
     rows = [r for r in all_rows if r["status"] == CONVERGED]
     with mpl.rc_context({"figure.constrained_layout.use": True}):
-        images = [_png(fig, DPI) for fig in (_figures(rows) if rows else [])]
+        images = [png_bytes(fig, DPI) for fig in (_figures(rows) if rows else [])]
     table = "".join(f"<tr><th>{html.escape(k.replace('_', ' '))}</th>"
-                    f"<td>{html.escape(_cell(v))}</td></tr>" for k, v in summary(all_rows).items())
+                    f"<td>{html.escape(table_cell(v))}</td></tr>" for k, v in summary(all_rows).items())
     figures = "".join(f'<p><img alt="figure {i}" src="data:image/png;base64,'
                       f'{base64.b64encode(png).decode()}"></p>' for i, png in enumerate(images))
     title = html.escape(f"itt-planner sweep: {summary(all_rows)['sweep']}")
