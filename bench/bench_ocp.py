@@ -122,7 +122,7 @@ def _solve_case(spec: tuple[str, float | None, str, int, dict, Plan | None],
         cpus.append(time.process_time() - c0)
     out.put({"walls": walls, "cpus": cpus, "wall_s": statistics.median(walls),
              "cpu_s": statistics.median(cpus), "iterations": plan.iterations,
-             "n_nodes": plan.n_nodes, "status": plan.solver_status,
+             "n_nodes": plan.n_nodes, "status": f"{plan.status} ({plan.solver_status})",
              "finish_s": plan.finish_time_s, "peak_mb": peak_mb(), "load": load(),
              "plan": plan})
 

@@ -88,33 +88,19 @@ import numpy as np
 from itt_planner.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.course import Course
 from itt_planner.mesh import road_data, target_spacing
-from itt_planner.model import ModelParams, build_3d_steady_lean, steady_lean_rad
-from itt_planner.ocp import PLAN_ARRAYS, U_DELTA_MAX, U_W_MAX, V_MIN_MPS
+from itt_planner.model import ModelParams, build_3d_steady_lean, speed_bound_mps, steady_lean_rad
+from itt_planner.ocp import U_DELTA_MAX, U_W_MAX
+from itt_planner.ocp_guess import PLAN_ARRAYS, V_MIN_MPS, plan_spacing_cap
 from itt_planner.plan import Plan
 from itt_planner.rider import Rider
+from itt_planner.solver import CAPPED_STATUSES, HORIZON_COLD, HORIZON_WARM, horizon_options
 from itt_planner.state import RiderState
 from itt_planner.transcription import transcribe
 
 log = logging.getLogger(__name__)
 
-#: Replans with a previous solution start next to the optimum: a small initial barrier
-#: and a start kept inside the bounds it already satisfies. Measured on verona-like
-#: (bench/RESULTS.md): median ~20 iterations instead of ~50 with IPOPT's defaults.
-_WARM_IPOPT = {"mu_init": 1e-4, "mu_strategy": "monotone", "warm_start_init_point": "yes",
-               "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6,
-               "warm_start_slack_bound_push": 1e-6, "nlp_scaling_method": "none"}
-#: Both without IPOPT's gradient-based NLP scaling: it divided the objective (slack and
-#: terminal penalties give gradients of 100-1000) by up to 10x, so the tolerance and the
-#: barrier acted on a different problem than the one the weights were tuned on; without
-#: it the whole verona-like sweep went from 95 % to 98 % usable replans and the p95
-#: latency from 387 to 246 ms (bench/RESULTS.md).
-#: The first replan (or one after a failure) starts from the full-course plan, which was
-#: solved with the roll dynamics: a larger barrier lets IPOPT move away from it (with the
-#: warm settings 1 of 12 verona-like windows failed, with these none).
-_COLD_IPOPT = {"mu_init": 1e-2, "mu_strategy": "monotone", "nlp_scaling_method": "none"}
 #: IPOPT statuses of a run stopped by the budget, whose last iterate may still be usable.
-_CAP_STATUSES = ("Maximum_Iterations_Exceeded", "Maximum_WallTime_Exceeded",
-                 "Maximum_CpuTime_Exceeded")
+_CAP_STATUSES = CAPPED_STATUSES
 #: Status of a budget-capped iterate that passed `HorizonPlanner.feasible` (success=True).
 SUBOPTIMAL_FEASIBLE = "Suboptimal_Feasible"
 #: W' (as E_n) a usable iterate may undershoot 0 by: IPOPT's bound relaxation only.
@@ -233,31 +219,34 @@ class HorizonPlanner:
         self.conditions, self.settings = conditions, settings
         self._model = build_3d_steady_lean(eps_wn=settings.eps_wn,
                                            sharpness_w=settings.sharpness_w)
+        # Without the transcription's acceleration bound (issue 18): the window never
+        # starts below 1 m/s (`initial_state`), its spacing follows the plan's speed and
+        # its speed is bounded by physics (`_speed_bound`); with the bound the technical-
+        # descent sweep of test_horizon lost a usable replan (47 vs 48 of 50) and one
+        # converged window broke grip at its first node.
         self._tr = transcribe(self._model, settings.n_intervals, substeps=settings.substeps,
-                              soft=True, slack_weight=settings.slack_weight)
-        opts = {**self._tr.derivatives,
-                "ipopt.max_iter": settings.max_iter,
-                "ipopt.tol": settings.tol, "ipopt.acceptable_tol": 10 * settings.tol,
-                "ipopt.acceptable_iter": settings.acceptable_iter,
-                "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
-                "ipopt.linear_solver": "mumps",
-                "error_on_fail": False, "no_nlp_grad": True, "calc_lam_p": False}
+                              soft=True, slack_weight=settings.slack_weight,
+                              accel_bound=False)
         # Three solvers over the same NLP and derivative Functions (building is cheap):
         # the budget is an IPOPT option, so the warm attempt and the cold retry after
         # it get their shares of the wall time, a cold first start all of it.
         budget = settings.max_wall_time_s
         self._solvers = {
-            kind: ca.nlpsol(f"horizon_{kind}", "ipopt", self._tr.nlp,
-                            {**opts, "ipopt.max_wall_time": max(wall, 1e-3),
-                             **{f"ipopt.{k}": v for k, v in ipopt.items()}})
-            for kind, ipopt, wall in (
-                ("warm", _WARM_IPOPT, settings.warm_share * budget),
-                ("cold", _COLD_IPOPT, budget),
-                ("retry", _COLD_IPOPT, (1.0 - settings.warm_share) * budget))}
+            kind: ca.nlpsol(f"horizon_{kind}", "ipopt", self._tr.nlp, {
+                **self._tr.derivatives,
+                **horizon_options(max_iter=settings.max_iter, max_wall_time_s=wall,
+                                  tol=settings.tol, acceptable_iter=settings.acceptable_iter,
+                                  start=start)})
+            for kind, start, wall in (
+                ("warm", HORIZON_WARM, settings.warm_share * budget),
+                ("cold", HORIZON_COLD, budget),
+                ("retry", HORIZON_COLD, (1.0 - settings.warm_share) * budget))}
         nlp = self._tr.nlp
         self._g = ca.Function("horizon_g", [nlp["x"], nlp["p"]], [nlp["g"]])
         self._par = ModelParams(rider, conditions, settings.w_delta, settings.w_power).vector()
-        self._spacing = target_spacing(course, settings.h_min_m, settings.h_max_m)
+        # Finer where the plan is slow (the launch): `dv/ds = a/v` is stiff there (issue 18).
+        self._spacing = target_spacing(course, settings.h_min_m, settings.h_max_m,
+                                       h_cap_m=plan_spacing_cap(course, plan, rider, conditions))
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._previous_mult: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._failures = 0
@@ -272,7 +261,11 @@ class HorizonPlanner:
         """The fixed-count node positions of the window starting at `s_m`.
 
         Equal steps of the cumulative node density `1/h`, with `h` the course's mesh
-        spacing capped by `h_min_m + near_grade * (distance ahead)`.
+        spacing capped by `h_min_m + near_grade * (distance ahead)`. A window cut short
+        by the finish has more nodes than that density asks for: the surplus is spread
+        evenly (an added uniform density) instead of shrinking every interval alike,
+        which left 0.85 m first intervals in a 150 m window, too short to steer from a
+        measured line (a grip violation of 3x at the first node in test_horizon).
         """
         st, c = self.settings, self.course
         end = min(s_m + st.horizon_m, c.length_m)
@@ -281,6 +274,9 @@ class HorizonPlanner:
         h = np.minimum(np.interp(grid, c.s_m, self._spacing),
                        st.h_min_m + st.near_grade * (grid - s_m))
         dens = 1.0 / h
+        if end - s_m < st.horizon_m - 1.0:
+            surplus = st.n_intervals - float(np.sum(0.5 * (dens[1:] + dens[:-1]) * np.diff(grid)))
+            dens = dens + max(surplus, 0.0) / (end - s_m)
         cum = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * np.diff(grid))])
         nodes = np.interp(np.linspace(0.0, cum[-1], st.n_intervals + 1), cum, grid)
         nodes[0], nodes[-1] = s_m, end
@@ -304,6 +300,11 @@ class HorizonPlanner:
         # advice at all. Half of that margin covers the E9 smoothing and the RK4 step.
         rate_wps = r.power_rate_max_wps * U_W_MAX
         power = min(power, r.critical_power_w + math.sqrt(rate_wps * w_prime))
+        # No more than the tyres transmit at this speed (C16, pedalling alone): a power
+        # reading beyond it (a sprint measured at walking pace) would otherwise break the
+        # transcription's acceleration bound in the first interval.
+        power = min(power, self.conditions.mu_x * GRAVITY_MPS2 * r.mass_kg * v
+                    / r.drivetrain_efficiency)
         if power >= 0:
             w_n = power / r.max_power_w
         else:
@@ -372,7 +373,10 @@ class HorizonPlanner:
         path = lam_g[nx * n: nx * n + n_path * (n + 1)].reshape(n + 1, n_path).T
         lam_g_new = np.concatenate([
             shift(gap, s_prev[:-1], nodes[:-1], inside[:-1]).T.ravel(),
-            shift(path, s_prev, nodes, inside).T.ravel(), lam_g[-1:]])
+            shift(path, s_prev, nodes, inside).T.ravel(),
+            # the acceleration bounds (transcription): inactive at a solution
+            np.zeros(lay.accel_rows.stop - lay.accel_rows.start),
+            lam_g[-1:]])
         return {"lam_x0": lam_x_new, "lam_g0": lam_g_new}
 
     def _bounds(self, nodes: np.ndarray, x0: np.ndarray
@@ -384,7 +388,8 @@ class HorizonPlanner:
         ubx[m.index("n")] = c.at("width_left_m", nodes) - self.settings.margin_m
         lbx[m.index("alpha")], ubx[m.index("alpha")] = -_ALPHA_MAX_RAD, _ALPHA_MAX_RAD
         lbx[m.index("v")] = V_MIN_MPS
-        ubx[m.index("v")] = self.corner_speed_cap(nodes, float(x0[m.index("v")]))
+        ubx[m.index("v")] = np.minimum(self.corner_speed_cap(nodes, float(x0[m.index("v")])),
+                                       self._speed_bound(nodes, float(x0[m.index("v")])))
         lbx[m.index("w_n")], ubx[m.index("w_n")] = -1.0, 1.0  # C13
         lbx[m.index("delta_n")], ubx[m.index("delta_n")] = -1.0, 1.0  # C14
         lbx[m.index("e_n")], ubx[m.index("e_n")] = 0.0, 1.0  # C12
@@ -392,6 +397,13 @@ class HorizonPlanner:
         lbx[:, 0] = ubx[:, 0] = x0
         u_max = np.array([[U_DELTA_MAX], [U_W_MAX]])
         return lbx, ubx, np.repeat(-u_max, n - 1, axis=1), np.repeat(u_max, n - 1, axis=1)
+
+    def _speed_bound(self, nodes: np.ndarray, v0: float) -> float:
+        """Physics' upper speed bound over the window (`model.speed_bound_mps`, issue 18)."""
+        c = self.course
+        inside = (c.s_m >= nodes[0] - c.ds_m) & (c.s_m <= nodes[-1] + c.ds_m)
+        steepest = float(np.tan(np.min(c.beta_rad[inside], initial=0.0)))
+        return speed_bound_mps(self.rider, self.conditions, steepest, start_mps=v0)
 
     def corner_speed_cap(self, nodes: np.ndarray, v0: float) -> np.ndarray:
         """Upper speed bound per node: the plan's speed where the plan corners at the grip

@@ -42,14 +42,15 @@ ROAD = ("kappa", "beta", "theta", "ds")
 #: Model parameters, the order of `ModelParams.vector()`.
 PARAMS = ("mass", "roll_inertia", "com_height", "k_v", "crr", "wheelbase", "steer_max",
           "power_rate_max", "steer_rate_max", "cp", "p_max", "w_prime", "pedal_lean", "mu_x",
-          "mu_y", "wind_e", "wind_n", "w_delta", "w_power")
+          "mu_y", "wind_e", "wind_n", "w_delta", "w_power", "efficiency")
 
 #: Smoothing width of max(W_n, 0) in the dynamics (normalised power; 1e-3 is ~1 W).
 _EPS_WN = 1e-3
 #: Smoothing of |v - V_w| (m/s)^2 under the square root.
 _EPS_AIR = 1e-2
-#: Softplus width of the E9 switch at critical power (W).
-_SHARPNESS_W = 5.0
+#: Softplus width of the E9 switch at critical power (W); part of the model (verify.py).
+E9_SHARPNESS_W = 5.0
+_SHARPNESS_W = E9_SHARPNESS_W
 #: Speed floor inside divisions (m/s), below the OCP's v_min so never active at a solution.
 _V_GUARD_MPS = 0.2
 #: Width (normalised) of the smooth pedalling gate of C15.
@@ -69,16 +70,29 @@ class ModelParams:
     w_power: float = 0.01
 
     def vector(self) -> np.ndarray:
-        """The parameter vector in `PARAMS` order; k_v = 0.5 rho C_D A_f (E3)."""
+        """The parameter vector in `PARAMS` order; k_v = 0.5 rho C_D A_f (E3).
+
+        `mu_y` is the effective lateral limit of C16, `lateral_limit_mps2 / g`: the grip,
+        or the rider's own cornering limit when that is lower.
+        """
         r, c = self.rider, self.conditions
         wind_e, wind_n = c.wind_enu_mps()
         return np.array([
             r.mass_kg, r.roll_inertia_kgm2, r.com_height_m,
             0.5 * c.air_density_kgpm3 * r.drag_area_m2, r.crr, r.wheelbase_m, r.steer_max_rad,
             r.power_rate_max_wps, r.steer_rate_max_radps, r.critical_power_w, r.max_power_w,
-            r.w_prime_j, r.pedal_lean_max_rad, c.mu_x, c.mu_y, wind_e, wind_n,
-            self.w_delta, self.w_power,
+            r.w_prime_j, r.pedal_lean_max_rad, c.mu_x,
+            lateral_limit_mps2(r, c) / GRAVITY_MPS2, wind_e, wind_n,
+            self.w_delta, self.w_power, r.drivetrain_efficiency,
         ])
+
+
+def lateral_limit_mps2(rider: Rider, conditions: Conditions) -> float:
+    """The lateral acceleration C16 allows: `min(mu_y g, max_lateral_accel_mps2)`."""
+    grip = conditions.mu_y * GRAVITY_MPS2
+    if rider.max_lateral_accel_mps2 is None:
+        return grip
+    return min(grip, rider.max_lateral_accel_mps2)
 
 
 @dataclass(frozen=True)
@@ -129,14 +143,16 @@ def _longitudinal(v: ca.SX, w_n: ca.SX, e_n: ca.SX, psi: ca.SX, beta: ca.SX,
     # Guards for wild trial points only (inside the bounds they are inactive): speed in
     # divisions, and the E9 softplus argument that would overflow exp() far beyond W_max.
     v = ca.fmax(v, _V_GUARD_MPS)
-    p_plus = q["p_max"] * _smooth_pos(w_n, eps_wn)
+    p_plus = q["p_max"] * _smooth_pos(w_n, eps_wn)  # crank power: E9 and the advice
     p_brake = q["mu_x"] * g * q["mass"] * v * (w_n - _smooth_pos(w_n, eps_wn))
     # E3 [fix]: wind projected on the absolute heading psi; tail wind positive.
     v_wind = q["wind_e"] * ca.cos(psi) + q["wind_n"] * ca.sin(psi)
     v_air = v - v_wind
     drag = q["k_v"] * v_air * ca.sqrt(v_air * v_air + _EPS_AIR)
     resist = q["mass"] * g * (q["crr"] * ca.cos(beta) + ca.sin(beta))
-    v_dot = (p_plus + p_brake) / (q["mass"] * v) - resist / q["mass"] - drag / q["mass"]
+    # E3 with the drivetrain losses: power at the wheel = efficiency x crank power.
+    v_dot = ((q["efficiency"] * p_plus + p_brake) / (q["mass"] * v) - resist / q["mass"]
+             - drag / q["mass"])
     e_dot = e_n_rate(e_n, ca.fmin(p_plus, 2 * q["p_max"]), q["cp"], q["w_prime"], wprime_model,
                      sharpness_w=sharpness_w)
     return v_dot, e_dot
@@ -148,7 +164,7 @@ def _ax_squared(v: ca.SX, w_n: ca.SX, q: dict[str, ca.SX]) -> ca.SX:
     max(W_n,0)^2 and min(W_n,0)^2 are C1, so no smoothing is needed here.
     """
     g = GRAVITY_MPS2
-    pedal = q["p_max"] * ca.fmax(w_n, 0) / (q["mass"] * v) / (q["mu_x"] * g)
+    pedal = q["efficiency"] * q["p_max"] * ca.fmax(w_n, 0) / (q["mass"] * v) / (q["mu_x"] * g)
     brake = ca.fmin(w_n, 0)
     return pedal * pedal + brake * brake
 
@@ -304,10 +320,15 @@ def build_1d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
 
 
 def _report(v: ca.SX, w_n: ca.SX, ay: ca.SX, friction: ca.SX, q: dict[str, ca.SX]) -> ca.SX:
-    """[power_w, ax, ay, friction_use] with the exact (unsmoothed) power of section 2."""
+    """[power_w, ax, ay, friction_use] with the exact (unsmoothed) power of section 2.
+
+    power_w is the rider's (crank) power when pedalling, the braking power at the contact
+    point when negative; ax is the tyre force per unit mass (wheel power when pedalling).
+    """
     g = GRAVITY_MPS2
     power = q["p_max"] * ca.fmax(w_n, 0) + q["mu_x"] * g * q["mass"] * v * ca.fmin(w_n, 0)
-    ax = q["p_max"] * ca.fmax(w_n, 0) / (q["mass"] * v) + q["mu_x"] * g * ca.fmin(w_n, 0)
+    ax = (q["efficiency"] * q["p_max"] * ca.fmax(w_n, 0) / (q["mass"] * v)
+          + q["mu_x"] * g * ca.fmin(w_n, 0))
     return ca.vertcat(power, ax, ay, friction)
 
 
@@ -350,17 +371,54 @@ def rk4_step(model: SpatialModel, substeps: int) -> ca.Function:
 
 def steady_speed_mps(power_w: float, rider: Rider, conditions: Conditions = Conditions(),
                      grade: float = 0.0) -> float:
-    """Closed-form steady speed of the power balance (Martin et al. 1998 form, no wind).
+    """Steady speed of the E3 power balance (Martin et al. 1998 form, no wind), m/s.
 
-    Solves `P = v (m g (c_rr cos b + sin b) + k_v v^2)` for v with Cardano's formula
-    (the cubic has one positive real root when the resistance is positive).
+    Solves `eta P = v (m g (c_rr cos b + sin b) + k_v v^2)` (`eta`: drivetrain efficiency)
+    for the physical root: the largest real root of the depressed cubic
+    `v^3 + a v + b = 0`. Climbing or on the flat (`a > 0`) there is one real root
+    (Cardano). On a descent steep enough that gravity beats rolling resistance (`a < 0`)
+    the cubic can have three real roots (0 < v1 < v2 with a negative third when P is small,
+    a double root at P = 0 ... ); the physical speed is where propulsion plus gravity
+    balances drag from above, the largest root, from the trigonometric form. With P = 0
+    that is the terminal speed `sqrt(-a)`. One Newton step polishes the closed form
+    (Cardano loses digits when `a` is large and `b` small). Returns 0 when there is no
+    positive balance (no power on a road that does not descend: the rider stops).
+
+    Raises:
+        ValueError: negative or non-finite power, or a non-finite grade.
     """
+    if not (math.isfinite(power_w) and power_w >= 0 and math.isfinite(grade)):
+        raise ValueError(f"steady speed needs a power >= 0 W and a finite grade, got "
+                         f"{power_w!r} W at {grade!r}")
     beta = math.atan(grade)
     k_v = 0.5 * conditions.air_density_kgpm3 * rider.drag_area_m2
     a = rider.mass_kg * GRAVITY_MPS2 * (rider.crr * math.cos(beta) + math.sin(beta)) / k_v
-    b = -power_w / k_v
-    # v^3 + a v + b = 0 (depressed cubic)
+    b = -rider.drivetrain_efficiency * power_w / k_v
     disc = (b / 2) ** 2 + (a / 3) ** 3
-    root = math.sqrt(disc)
-    return math.copysign(abs(-b / 2 + root) ** (1 / 3), -b / 2 + root) + math.copysign(
-        abs(-b / 2 - root) ** (1 / 3), -b / 2 - root)
+    if disc >= 0:  # one real root
+        root = math.sqrt(disc)
+        v = math.copysign(abs(-b / 2 + root) ** (1 / 3), -b / 2 + root) + math.copysign(
+            abs(-b / 2 - root) ** (1 / 3), -b / 2 - root)
+    else:  # three real roots (a < 0): the largest, trigonometric form
+        r = math.sqrt(-a / 3)
+        cos3 = max(-1.0, min(1.0, (3 * b / (2 * a)) * math.sqrt(-3 / a)))
+        v = 2 * r * math.cos(math.acos(cos3) / 3)
+    slope = 3 * v * v + a
+    if slope > 0:  # Newton polish; f is convex beyond its largest root's neighbourhood
+        v -= (v ** 3 + a * v + b) / slope
+    return max(v, 0.0)
+
+
+def speed_bound_mps(rider: Rider, conditions: Conditions, steepest_grade: float,
+                    *, start_mps: float = 0.0) -> float:
+    """An upper bound on the speed of any physical ride of the course (m/s).
+
+    Above the steady speed at full power (`max_power_w`) on the steepest descent the
+    rider decelerates everywhere on the course, so no ride that starts slower can get
+    faster; a tail wind adds at most its own speed. The margin (x1.25 + 3 m/s) keeps
+    the bound inactive at every physical optimum; it exists so that an integration
+    artefact (a coarse step at low speed, issue 18) can never be an optimum.
+    """
+    grade = min(float(steepest_grade), 0.0)
+    v_max = steady_speed_mps(rider.max_power_w, rider, conditions, grade)
+    return max(1.25 * (v_max + conditions.wind_speed_mps) + 3.0, start_mps)

@@ -40,6 +40,11 @@ class Plan:
             time) from there on, along the optimum (negative: speed saves time); the
             IPOPT multiplier of that node's speed continuity constraint (the adjoint).
             The receding horizon prices the speed it carries past its end with it.
+        solver_status: IPOPT's raw return status (`Invalid_Plan` when the solver converged
+            but the plan failed its verification).
+        status: what the outcome means (`solver.PlanStatus` value: converged, capped,
+            failed, invalid); only a `converged` plan is verified and fit for use.
+            `meta["verification"]` holds the replay's figures (`verify.Verification`).
     """
 
     model: str
@@ -65,6 +70,12 @@ class Plan:
     iterations: int
     solve_time_s: float
     meta: dict[str, Any] = field(default_factory=dict)
+    status: str = "converged"
+
+    @property
+    def converged(self) -> bool:
+        """Converged and verified: the only plan fit for use."""
+        return self.status == "converged"
 
     @property
     def finish_time_s(self) -> float:
@@ -81,8 +92,8 @@ class Plan:
     def save(self, path: str | Path) -> Path:
         path = Path(path)
         header = {"format": _FORMAT, "model": self.model, "solver_status": self.solver_status,
-                  "iterations": self.iterations, "solve_time_s": self.solve_time_s,
-                  "meta": self.meta}
+                  "status": self.status, "iterations": self.iterations,
+                  "solve_time_s": self.solve_time_s, "meta": self.meta}
         with path.open("wb") as fh:
             np.savez_compressed(fh, header=np.array(json.dumps(header)),
                                 **{k: getattr(self, k) for k in PLAN_ARRAYS})
@@ -105,6 +116,10 @@ class Plan:
         if header.get("format") != _FORMAT:
             raise IttError(f"{path}: not an itt-planner plan file")
         names = {f.name for f in fields(cls)}
+        if "status" not in header:  # a file from before the status: unverified, IPOPT's
+            from itt_planner.solver import PlanStatus  # noqa: PLC0415
+
+            header["status"] = PlanStatus.of(str(header.get("solver_status", ""))).value
         return cls(**arrays, **{k: v for k, v in header.items() if k in names})
 
 

@@ -41,6 +41,12 @@ class Rider:
     max_power_w: float = 1870.0
     w_prime_j: float = 22000.0
     pedal_lean_max_rad: float = math.radians(20.0)
+    #: The rider's own cornering limit (model.md section 7: amateurs corner far below the
+    #: grip limit): C16 uses `a_y <= min(mu_y g, max_lateral_accel_mps2)`. None: grip only.
+    max_lateral_accel_mps2: float | None = None
+    #: Power at the wheel = efficiency x crank power in E3 (chain, bearings); E9 and the
+    #: advised power stay crank power. 1.0 keeps the paper's model.
+    drivetrain_efficiency: float = 1.0
 
     def __post_init__(self) -> None:
         positive = (
@@ -55,6 +61,16 @@ class Rider:
                 raise RiderError(msg)
         if not 0 <= self.crr < 0.1:
             msg = f"rider {self.name!r}: crr must be in [0, 0.1), got {self.crr!r}"
+            raise RiderError(msg)
+        lateral = self.max_lateral_accel_mps2
+        if lateral is not None and (not isinstance(lateral, (int, float))
+                                    or not math.isfinite(lateral) or lateral <= 0):
+            msg = (f"rider {self.name!r}: max_lateral_accel_mps2 must be a positive finite "
+                   f"number or null, got {lateral!r}")
+            raise RiderError(msg)
+        eta = self.drivetrain_efficiency
+        if not isinstance(eta, (int, float)) or not 0.5 <= eta <= 1.0:
+            msg = f"rider {self.name!r}: drivetrain_efficiency must be in [0.5, 1], got {eta!r}"
             raise RiderError(msg)
         if self.critical_power_w >= self.max_power_w:
             msg = (f"rider {self.name!r}: critical_power_w ({self.critical_power_w}) must be below "

@@ -9,7 +9,18 @@ of the instability (prototype: RK4 per 1-2 m converged in 2.5x fewer iterations 
 Layout: the decision vector is ordered stage by stage, `[x_0, u_0, s_0, x_1, u_1, s_1,
 ..., x_N (, e)]` (`s_k`: slacks of the softened path constraints, `e`: the terminal W'
 slack; both only when `soft`). The constraints are the continuity gaps (interval-major),
-then the path constraints C15/C16 (node-major), then the soft terminal condition.
+then the path constraints C15/C16 (node-major), then the acceleration bounds (one per
+interval, below), then the soft terminal condition.
+
+Acceleration bound (issue 18, sound transcription at every speed): in the spatial
+domain `dv/ds = a / v`, so one RK4 step of 10 m from 0.5 m/s turned 560 W into 580 m/s,
+and IPOPT found a "rest and sprint" optimum that rode on that artefact. Whatever the
+integrator does, a physical ride cannot gain speed faster than the tyres (C16,
+`mu_x g`) plus gravity (and a tail wind's push) allow, so every interval carries
+`(v_{k+1}^2 - v_k^2) / (2 ds) <= mu_x g - g sin(beta) + k_v V_w^2 / m` (rolling
+resistance and drag only make the true bound tighter; it is never active at a physical
+optimum). It couples the speeds of two neighbouring nodes only: its Jacobian has two
+entries per row and its Hessian is diagonal (folded into the stage kernels' `v^2` term).
 Everything that changes between solves is a bound (initial state, road widths, W' >= 0)
 or an NLP parameter (road data per interval, model parameters, terminal data), so one
 NLP serves any course section with the same node count: the horizon planner builds it
@@ -33,6 +44,7 @@ import casadi as ca
 import numpy as np
 
 from itt_planner.codegen import compiled
+from itt_planner.conditions import GRAVITY_MPS2
 from itt_planner.model import PARAMS, ROAD, SpatialModel, rk4_step
 
 #: Terminal data of the soft terminal treatment: [E_n target, v target, v weight
@@ -52,6 +64,18 @@ class Layout:
     ns: int  # slacks per stage (0 for hard constraints)
     n_intervals: int
     n_path: int
+    accel: bool = True  # the acceleration bounds are rows of g
+
+    @property
+    def n_gap(self) -> int:
+        """Number of continuity constraints (first in g)."""
+        return self.nx * self.n_intervals
+
+    @property
+    def accel_rows(self) -> slice:
+        """Where the acceleration bounds sit in g (after the path constraints)."""
+        start = self.n_gap + self.n_path * self.n_nodes
+        return slice(start, start + (self.n_intervals if self.accel else 0))
 
     @property
     def stage(self) -> int:
@@ -129,20 +153,24 @@ def _build_kernels(model: SpatialModel, substeps: int, compile_c: bool
     n_path = int(model.path.size1_out(0))
     sigma, lam, mu = ca.SX.sym("sigma"), ca.SX.sym("lam", nx), ca.SX.sym("mu", n_path)
     v_target, v_weight = ca.SX.sym("v_target"), ca.SX.sym("v_weight")
-    tag = f"{model.ode.name()}_{substeps}"
+    # nu_v: the node's share of the acceleration bounds' Hessian (coefficient of v^2).
+    nu_v = ca.SX.sym("nu_v")
+    tag = f"{model.ode.name()}_{substeps}_acc"
     xf, dt, dj = rk4_step(model, substeps)(x, u, road, p)
     z = ca.vertcat(x, u)
     g = model.path(x, p)
-    lag = sigma * dj + ca.dot(lam, xf) + ca.dot(mu, g)
-    lag_n = ca.dot(mu, g) + sigma * v_weight * (x[model.index("v")] - v_target) ** 2
+    v_sq = x[model.index("v")] ** 2
+    lag = sigma * dj + ca.dot(lam, xf) + ca.dot(mu, g) + nu_v * v_sq
+    lag_n = (ca.dot(mu, g) + sigma * v_weight * (x[model.index("v")] - v_target) ** 2
+             + nu_v * v_sq)
     kernels = [
         ca.Function(f"itt_F_{tag}", [x, u, road, p], [xf, dt, dj]),
         ca.Function(f"itt_JF_{tag}", [x, u, road, p],
                     [xf, dj, ca.densify(ca.jacobian(xf, z)), ca.densify(ca.gradient(dj, z))]),
-        ca.Function(f"itt_HK_{tag}", [x, u, road, p, sigma, lam, mu],
+        ca.Function(f"itt_HK_{tag}", [x, u, road, p, sigma, lam, mu, nu_v],
                     [ca.densify(ca.hessian(lag, z)[0])]),
         ca.Function(f"itt_P_{tag}", [x, p], [g, ca.densify(ca.jacobian(g, x))]),
-        ca.Function(f"itt_HN_{tag}", [x, p, sigma, mu, v_target, v_weight],
+        ca.Function(f"itt_HN_{tag}", [x, p, sigma, mu, v_target, v_weight, nu_v],
                     [ca.densify(ca.hessian(lag_n, x)[0])]),
     ]
     if compile_c:
@@ -161,7 +189,7 @@ def _csc(n_rows: int, n_cols: int, rows: np.ndarray, cols: np.ndarray, src: np.n
 
 def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
                soft: bool = False, slack_weight: float = 100.0,
-               compile_c: bool = True) -> Transcription:
+               compile_c: bool = True, accel_bound: bool = True) -> Transcription:
     """Multiple-shooting NLP: min sum of interval costs s.t. continuity and path constraints.
 
     Args:
@@ -178,7 +206,7 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     nx, nu, n = model.nx, model.nu, n_intervals
     n_path = int(model.path.size1_out(0))
     ns = n_path if soft else 0
-    lay = Layout(nx, nu, ns, n, n_path)
+    lay = Layout(nx, nu, ns, n, n_path, accel_bound)
     nz, st = nx + nu, lay.stage
     f_k, jf_k, hk_k, p_k, hn_k = stage_kernels(model, substeps, compile_c)
     iv, ie = model.index("v"), model.index("e_n")
@@ -195,7 +223,8 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     par = p[len(ROAD) * n: len(ROAD) * n + len(PARAMS)]
     term = p[len(ROAD) * n + len(PARAMS):] if soft else ca.MX.zeros(len(TERMINAL))
     ng_gap, ng_path = nx * n, n_path * (n + 1)
-    ng = ng_gap + ng_path + (1 if soft else 0)
+    ng_acc = n if accel_bound else 0
+    ng = ng_gap + ng_path + ng_acc + (1 if soft else 0)
     lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", ng)
 
     # ---- objective and constraints ------------------------------------------------------
@@ -203,6 +232,15 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     path, path_jac = p_k.map(n + 1)(xs, par)
     f = ca.sum2(dj)
     g_gap = ca.vec(x_next - xs[:, 1:])
+    # Acceleration bounds (module docstring): tyres + gravity + a tail wind's push.
+    q = {name: par[i] for i, name in enumerate(PARAMS)}
+    ds_k, beta_k = road[3, :], road[1, :]
+    wind_sq = q["wind_e"] ** 2 + q["wind_n"] ** 2
+    a_up = (q["mu_x"] * GRAVITY_MPS2 - GRAVITY_MPS2 * ca.sin(beta_k)
+            + q["k_v"] * wind_sq / q["mass"])
+    v_row = xs[iv, :]
+    v_to, v_from = v_row[0, 1:], v_row[0, :n]
+    g_acc = ca.vec((v_to ** 2 - v_from ** 2) / (2 * ds_k) - a_up)
     if soft:
         slacks = body[nz:, :]
         e_slack = w[-1]
@@ -211,9 +249,9 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
         f = f + slack_weight * (ca.sum1(ca.sum2(slacks)) + ca.sumsqr(slacks))
         f = f + _TERMINAL_SLACK_FACTOR * slack_weight * (e_slack + e_slack ** 2)
         f = f + term[3] * (x_last[iv] - term[1]) + term[2] * (x_last[iv] - term[1]) ** 2
-        g = ca.vertcat(g_gap, ca.vec(path), term[0] - x_last[ie] - e_slack)
+        g = ca.vertcat(g_gap, ca.vec(path), g_acc[:ng_acc], term[0] - x_last[ie] - e_slack)
     else:
-        g = ca.vertcat(g_gap, ca.vec(path))
+        g = ca.vertcat(g_gap, ca.vec(path), g_acc[:ng_acc])
     lbg = np.concatenate([np.zeros(ng_gap), np.full(ng - ng_gap, -np.inf)])
     ubg = np.zeros(ng)
 
@@ -228,8 +266,10 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
 
     # ---- Jacobian of g: dense stage blocks scattered into the banded pattern -------------
     k = np.arange(n)
-    values = ca.vertcat(ca.vec(jac_z), ca.vec(path_jac), ca.MX(-1))
+    values = ca.vertcat(ca.vec(jac_z), ca.vec(path_jac), ca.MX(-1),
+                        ca.vec(v_to / ds_k), ca.vec(-v_from / ds_k))
     off_p, minus_one = nx * nz * n, nx * nz * n + n_path * nx * (n + 1)
+    off_acc = minus_one + 1
     kk, rr, cc = np.meshgrid(k, np.arange(nx), np.arange(nz), indexing="ij")
     trip = [(kk * nx + rr, kk * st + cc, kk * nx * nz + cc * nx + rr)]  # dF/dz
     kk, rr = np.meshgrid(k, np.arange(nx), indexing="ij")
@@ -238,6 +278,10 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     kk, rr, cc = np.meshgrid(kn, np.arange(n_path), np.arange(nx), indexing="ij")
     trip.append((ng_gap + kk * n_path + rr, lay.x_index(kk, cc),
                  off_p + kk * n_path * nx + cc * n_path + rr))  # dpath/dx
+    if accel_bound:
+        row_acc = ng_gap + ng_path + k
+        trip.append((row_acc, lay.x_index(k + 1, iv), off_acc + k))  # d/dv_{k+1}
+        trip.append((row_acc, lay.x_index(k, iv), off_acc + n + k))  # d/dv_k
     if soft:
         kk, rr = np.meshgrid(kn, np.arange(n_path), indexing="ij")
         trip.append((ng_gap + kk * n_path + rr, np.minimum(kk, n - 1) * st + nz + rr,
@@ -251,8 +295,16 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     # ---- Hessian of the Lagrangian: block diagonal, upper triangle -------------------------
     lam_gap = ca.reshape(lam_g[:ng_gap], nx, n)
     mu = ca.reshape(lam_g[ng_gap: ng_gap + ng_path], n_path, n + 1)
-    h_stage = hk_k.map(n)(xs[:, :n], us, road, par, lam_f, lam_gap, mu[:, :n])
-    h_final = hn_k(x_last, par, lam_f, mu[:, n], term[1], term[2])
+    # d^2/dv^2 of sum_k nu_k (v_{k+1}^2 - v_k^2) / (2 ds_k): node k gets
+    # (nu_{k-1}/ds_{k-1} - nu_k/ds_k) / 2 as the coefficient of v_k^2.
+    if accel_bound:
+        nu_ds = ca.transpose(lam_g[ng_gap + ng_path: ng_gap + ng_path + ng_acc]) / (2 * ds_k)
+        nu_node = ca.horzcat(0, nu_ds) - ca.horzcat(nu_ds, 0)
+    else:
+        nu_node = ca.MX.zeros(1, n + 1)
+    h_stage = hk_k.map(n)(xs[:, :n], us, road, par, lam_f, lam_gap, mu[:, :n],
+                          nu_node[0, :n])
+    h_final = hn_k(x_last, par, lam_f, mu[:, n], term[1], term[2], nu_node[0, n])
     hvals = [ca.vec(h_stage), ca.vec(h_final)]
     off_n = nz * nz * n
     r_up, c_up = np.triu_indices(nz)

@@ -195,3 +195,17 @@ def test_failure_returns_status_not_exception(plan: Plan) -> None:
     garbage = dataclasses.replace(plan_state(plan, 10.0), speed_mps=float("nan"),
                                   power_w=float("nan"))
     assert isinstance(tight.solve(garbage), HorizonSolution)
+
+
+def test_horizon_respects_the_riders_cornering_limit() -> None:
+    """The rider's lateral limit (issue 14 item 4) holds in the horizon as in the plan."""
+    timid = Rider(name="timid", max_lateral_accel_mps2=4.0)
+    plan = solve_plan(COURSE, timid, model="3d")
+    # A cold first replan, generous budget: the outcome must not depend on the load.
+    planner = HorizonPlanner(COURSE, timid, plan,
+                             settings=HorizonSettings(max_iter=150, max_wall_time_s=20.0))
+    apex = COURSE.corners[0].apex_s_m
+    sol = planner.solve(plan_state(plan, max(apex - 150.0, 0.0), COURSE))
+    assert sol.success, sol.status
+    a_y = GRAVITY_MPS2 * np.tan(np.abs(sol.phi_rad[1:]))
+    assert a_y.max() <= 4.0 + 0.05 * 9.81  # the soft C16's grip_tol

@@ -119,11 +119,13 @@ def test_warm_start_from_a_plan(hairpin_plan: Plan) -> None:
     x, u = plan_guess(spm, hairpin_plan, nodes, x0, u0)
     assert np.array_equal(x[spm.index("v")], hairpin_plan.v_mps)
     assert np.array_equal(u[0], hairpin_plan.u_delta[:-1])
-    # Re-solved on the same mesh from its own solution: the same optimum, far sooner
-    # (measured 11 iterations vs 103 cold).
+    # Re-solved from its own solution: the same optimum, sooner (measured 2026-12-01:
+    # 22 iterations vs 36 cold, where the cold solve is 26 + 10 after the mesh refinement
+    # its verification asked for at the launch, and the warm one starts on the unrefined
+    # mesh again; before the verification: 11 vs 103 cold).
     again = solve_plan(course, rider, guess=hairpin_plan)
     assert again.meta["success"], again.solver_status
-    assert again.iterations < hairpin_plan.iterations / 3
+    assert again.iterations < hairpin_plan.iterations
     assert again.finish_time_s == pytest.approx(hairpin_plan.finish_time_s, rel=1e-5)
     # Onto a uniform 1 m mesh (measured 18 iterations; 40 cold).
     fine = solve_plan(course, rider, settings=OcpSettings(uniform_m=1.0), guess=hairpin_plan)
@@ -193,6 +195,29 @@ def test_plan_cache_round_trip(tmp_path) -> None:
     assert again.finish_time_s == pytest.approx(first.finish_time_s)
     other = load_or_solve(c, PRESETS["climber"], model="1d", cache_dir=tmp_path)
     assert other.finish_time_s != pytest.approx(first.finish_time_s)
+
+
+def test_plan_cache_is_keyed_by_model_code_and_keeps_only_verified_plans(
+        tmp_path, monkeypatch) -> None:
+    """A physics change (another source hash of the plan modules) never reuses a plan;
+    a plan that is not converged and verified is never stored."""
+    import dataclasses  # noqa: PLC0415
+
+    from itt_planner import plan_cache  # noqa: PLC0415
+
+    c, rider = straight(600.0), PRESETS["paper"]
+    key = plan_cache.plan_key(c, rider, Conditions(), OcpSettings(), "1d")
+    assert len(plan_cache.code_hash()) == 16
+    monkeypatch.setattr(plan_cache, "code_hash", lambda: "another-model")
+    assert plan_cache.plan_key(c, rider, Conditions(), OcpSettings(), "1d") != key
+    solved = solve_plan(c, rider, model="1d")
+    for status in ("invalid", "capped", "failed"):
+        bad = dataclasses.replace(solved, status=status,
+                                  meta={**solved.meta, "success": False})
+        monkeypatch.setattr(plan_cache, "solve_plan", lambda *a, _bad=bad, **k: _bad)
+        got = load_or_solve(c, rider, model="1d", cache_dir=tmp_path)
+        assert got.status == status
+        assert not list(tmp_path.glob("*.plan.npz"))
 
 
 # ---- verona-like: 1D vs 3D, riders ------------------------------------------------------
@@ -383,4 +408,48 @@ def test_plan_cli_bad_settings(tmp_path: Path) -> None:
     assert result.exit_code == EXIT_NOT_CONVERGED
     info = json.loads(result.stdout)
     assert info["success"] is False and info["solver_status"] != "Solve_Succeeded"
-    assert info["iterations"] <= OcpSettings().max_iter
+    assert info["iterations"] <= OcpSettings().budget("1d", 400.0)[0]
+    assert info["status"] == "capped" and info["verified"] is not True
+
+
+def test_plan_cli_allow_unconverged(tmp_path: Path) -> None:
+    """An unconverged plan is used only on request, and then says so (JSON and stderr);
+    a converged one carries its verification."""
+    runner = CliRunner()
+    wall = _yaml(tmp_path / "wall.yaml", {"name": "wall", "segments": [
+        {"type": "straight", "length_m": 100.0}, {"type": "straight", "length_m": 300.0,
+                                                  "grade_pct": 30.0}]})
+    weak = _yaml(tmp_path / "weak.yaml", {"critical_power_w": 60.0, "max_power_w": 200.0,
+                                          "w_prime_j": 2000.0})
+    result = runner.invoke(app, ["plan", "--course", str(wall), "--rider", str(weak),
+                                 "--model", "1d", "--max-iter", "50", "--json",
+                                 "--allow-unconverged"])
+    _no_traceback(result)
+    assert result.exit_code == 0
+    info = json.loads(result.stdout)
+    assert info["allowed_unconverged"] is True and info["success"] is False
+    assert info["status"] in ("capped", "failed", "invalid")
+    assert "not fit for use" in result.stderr and "--allow-unconverged" in result.stderr
+    ok = _yaml(tmp_path / "ok.yaml", SHORT_COURSE)
+    result = runner.invoke(app, ["plan", "--course", str(ok), "--model", "1d", "--json"])
+    assert result.exit_code == 0, result.stdout
+    info = json.loads(result.stdout)
+    assert info["status"] == "converged" and info["verified"] is True
+    assert "allowed_unconverged" not in info
+    assert info["verification"]["max_speed_error_mps"] < 0.3
+    assert info["attempts"][0]["strategy"] == "cold"
+
+
+def test_rider_cornering_limit_lowers_corner_speed() -> None:
+    """A rider's own lateral limit (issue 14 item 4) is C16's: corners slower, a_y within
+    it everywhere; grip alone corners faster."""
+    course = hairpin(straight_m=150.0, radius_m=20.0)
+    grip = solve_plan(course, PRESETS["paper"], model="3d")
+    timid_rider = Rider(name="timid", max_lateral_accel_mps2=4.0)
+    timid = solve_plan(course, timid_rider, model="3d")
+    assert grip.converged and timid.converged, (grip.meta["attempts"], timid.meta["attempts"])
+    assert np.max(np.abs(timid.ay_mps2)) <= 4.0 * 1.01
+    assert np.max(np.abs(grip.ay_mps2)) > 6.0
+    apex = course.corners[0].apex_s_m
+    assert timid.at("v_mps", apex) < 0.85 * grip.at("v_mps", apex)
+    assert timid.finish_time_s > grip.finish_time_s

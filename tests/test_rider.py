@@ -51,3 +51,40 @@ def test_invalid_yaml_names_the_field(tmp_path: Path, text: str, field: str) -> 
 def test_unknown_preset_name() -> None:
     with pytest.raises(RiderError, match="not a preset"):
         load_rider("eddy")
+
+
+def test_cornering_limit_and_drivetrain_fields_from_yaml(tmp_path: Path) -> None:
+    """The calibration's field names (issue 14 item 4): loadable, validated, defaults
+    that keep the paper's model."""
+    assert Rider().max_lateral_accel_mps2 is None and Rider().drivetrain_efficiency == 1.0
+    path = tmp_path / "amateur.yaml"
+    path.write_text("preset: typical\nmax_lateral_accel_mps2: 4.5\ndrivetrain_efficiency: 0.97\n")
+    rider = load_rider(path)
+    assert rider.max_lateral_accel_mps2 == 4.5 and rider.drivetrain_efficiency == 0.97
+    path.write_text("max_lateral_accel_mps2: null\n")
+    assert load_rider(path).max_lateral_accel_mps2 is None
+
+
+@pytest.mark.parametrize(("text", "field"), [
+    ("max_lateral_accel_mps2: 0\n", "max_lateral_accel_mps2"),
+    ("max_lateral_accel_mps2: .inf\n", "max_lateral_accel_mps2"),
+    ("drivetrain_efficiency: 1.2\n", "drivetrain_efficiency"),
+    ("drivetrain_efficiency: 0.1\n", "drivetrain_efficiency"),
+])
+def test_invalid_cornering_and_drivetrain_fields(tmp_path: Path, text: str, field: str) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(RiderError, match=field):
+        load_rider(path)
+
+
+def test_lateral_limit_is_the_lower_of_grip_and_rider() -> None:
+    from itt_planner.conditions import Conditions  # noqa: PLC0415
+    from itt_planner.model import PARAMS, ModelParams, lateral_limit_mps2  # noqa: PLC0415
+
+    assert lateral_limit_mps2(Rider(), Conditions()) == pytest.approx(9.81)
+    timid = Rider(max_lateral_accel_mps2=4.0)
+    assert lateral_limit_mps2(timid, Conditions()) == 4.0
+    assert lateral_limit_mps2(timid, Conditions(mu_y=0.3)) == pytest.approx(0.3 * 9.81)
+    par = ModelParams(timid, Conditions()).vector()
+    assert par[PARAMS.index("mu_y")] == pytest.approx(4.0 / 9.81)

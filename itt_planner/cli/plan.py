@@ -1,9 +1,13 @@
 """`itt-planner plan` and `itt-planner compare-riders`: full-course OCP solves.
 
-Exit codes of `plan`: 0 the solver converged; 1 unusable input (bad course, rider or
-settings: one `{"error", "type"}` JSON object with `--json`); 3 the solver stopped without
-converging (iteration/time cap, infeasible problem, e.g. a rider too weak for a wall): the
-plan's figures are still printed, with `solver_status` and `"success": false`.
+Exit codes of `plan`: 0 the plan converged and passed its verification (an independent
+replay, `verify`); 1 unusable input (bad course, rider or settings: one `{"error", "type"}`
+JSON object with `--json`); 3 the plan is not fit for use - the solver stopped without
+converging (iteration/time cap, infeasible problem, e.g. a rider too weak for a wall) or
+the plan failed its verification (`status` "invalid"): the plan's figures are still
+printed, with `status`, `solver_status` and `"success": false`. With
+`--allow-unconverged` such a plan exits 0, says `"allowed_unconverged": true` in the JSON
+and warns on stderr.
 """
 
 from __future__ import annotations
@@ -38,8 +42,12 @@ def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
         "max_lean_deg": round(math.degrees(float(np.max(np.abs(plan.phi_rad)))), 2),
         "max_friction_use": round(float(plan.friction_use.max()), 4),
         "solve_time_s": round(plan.solve_time_s, 3), "iterations": plan.iterations,
-        "n_nodes": plan.n_nodes, "solver_status": plan.solver_status,
+        "n_nodes": plan.n_nodes, "status": plan.status, "solver_status": plan.solver_status,
         "success": bool(plan.meta.get("success", False)),
+        "verified": (None if plan.meta.get("verification") is None
+                     else bool(plan.meta["verification"]["verified"])),
+        "verification": plan.meta.get("verification"),
+        "attempts": plan.meta.get("attempts", []),
         "corners": [
             {"apex_s_m": round(r.apex_s_m, 1), "min_radius_m": round(r.min_radius_m, 1),
              "braking_s_m": None if r.braking_s_m is None else round(r.braking_s_m, 1),
@@ -55,7 +63,8 @@ def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
 def _human(r: dict[str, Any]) -> str:
     lines = [f"{r['course']} ({r['model']}): {r['finish_time_s']:.1f} s, {r['mean_speed_kmh']} km/h, "
              f"{r['mean_power_w']} W, W' end {r['w_prime_end_j']:.0f} J, max lean "
-             f"{r['max_lean_deg']} deg  [{r['solver_status']}, {r['iterations']} it, "
+             f"{r['max_lean_deg']} deg  [{r['status']}: {r['solver_status']}, "
+             f"verified {r['verified']}, {r['iterations']} it, "
              f"{r['n_nodes']} nodes, {r['solve_time_s']} s]"]
     lines += [f"  corner {c['apex_s_m'] / 1000:6.2f} km R {c['min_radius_m']:5.1f} m: "
               f"{c['entry_speed_kmh']}/{c['apex_speed_kmh']}/{c['exit_speed_kmh']} km/h, "
@@ -75,14 +84,20 @@ def plan_cli(
     wind_kmh: float = typer.Option(0.0, "--wind-kmh", help="Wind speed (km/h)."),
     wind_from_deg: float = typer.Option(0.0, "--wind-from-deg",
                                         help="Direction the wind blows FROM (deg, 0 = North)."),
-    max_time_s: float = typer.Option(120.0, "--max-time-s", help="Solver CPU-time cap (s)."),
-    max_iter: int = typer.Option(400, "--max-iter", help="Solver iteration cap."),
+    max_time_s: float | None = typer.Option(
+        None, "--max-time-s", help="Solver time budget (s); default scales with the course."),
+    max_iter: int | None = typer.Option(
+        None, "--max-iter", help="Solver iteration budget; default scales with the course."),
+    allow_unconverged: bool = typer.Option(
+        False, "--allow-unconverged",
+        help="Exit 0 even if the plan did not converge or failed verification (says so)."),
     as_json: bool = JSON_OPTION,
 ) -> None:
-    """Solve the minimum-time pacing and cornering OCP over a whole course.
+    """Solve the minimum-time pacing and cornering OCP over a whole course, and verify it.
 
-    Exit code 0: converged; 1: unusable input; 3: the solver stopped at a cap or found
-    the problem infeasible (the figures are printed with that solver_status).
+    Exit code 0: converged and verified; 1: unusable input; 3: the solver stopped at a
+    cap, found the problem infeasible, or the plan failed verification (the figures are
+    printed with that status), unless --allow-unconverged.
     """
     from itt_planner.conditions import Conditions  # noqa: PLC0415
     from itt_planner.course_loader import load_course  # noqa: PLC0415
@@ -96,11 +111,20 @@ def plan_cli(
                             OcpSettings(max_cpu_time_s=max_time_s, max_iter=max_iter),
                             model=model)
         result = plan_summary(solved, built)
+        if not result["success"] and allow_unconverged:
+            result["allowed_unconverged"] = True
         if output is not None:
             result["output"] = str(solved.save(output))
         emit(result, as_json, _human)
     if not result["success"]:
-        raise typer.Exit(code=EXIT_NOT_CONVERGED)
+        typer.echo(f"WARNING: the plan is {solved.status} ({solved.solver_status}"
+                   + (f", worst mismatch {solved.meta['verification']['worst']} at s = "
+                      f"{solved.meta['verification']['worst_s_m']:.0f} m"
+                      if solved.status == "invalid" else "")
+                   + "): not fit for use" + ("; used anyway (--allow-unconverged)"
+                                             if allow_unconverged else ""), err=True)
+        if not allow_unconverged:
+            raise typer.Exit(code=EXIT_NOT_CONVERGED)
 
 
 @app.command("compare-riders")
