@@ -16,11 +16,15 @@
    a converged plan that fails it is `invalid` (`solver.PlanStatus`), never a success.
 
 Restart strategies (issue 14 item 2, issue 18 item 3), in this order, each only when the
-previous attempt did not end converged and verified, all within the budget:
+previous attempt did not end converged and verified, all within the budget (the first
+start may use `_FIRST_SHARE` of it):
 
 - early failure (`_RETRY_STATUSES`): the same start with a smaller bound push (on short
   courses the 3D model ended in Restoration_Failed with IPOPT's default push and
   converged in 39-64 iterations with 1e-4);
+- 1D: a cold start on a mesh of half the spacing (the 1D model on the 9 km hilly route
+  of bench_convergence with 20 m intervals stopped at 569 iterations; restarted on
+  10 m it converged in 65);
 - 3D without a given guess: warm start from the 1D plan of the same course (the 1D
   model has no roll mode and converges in a fraction of the time; its speed and power
   profile is most of the 3D solution away from corners). Only as a restart: as the
@@ -99,6 +103,8 @@ _BOUND_PUSH = 1e-2
 _RETRY_BOUND_PUSH = 1e-4
 _RETRY_STATUSES = ("Restoration_Failed", "Error_In_Step_Computation",
                    "Infeasible_Problem_Detected")
+#: Share of the budget the first start may use (the rest is for the restarts).
+_FIRST_SHARE = 0.6
 #: IPOPT's acceptable tolerance of the relaxed restart (module docstring).
 _RELAXED_TOL = 1e-4
 #: Mesh refinements after a failed verification (module docstring).
@@ -376,8 +382,10 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
         used = sum(a["iterations"] for a in attempts)
         return max_iter - used, seconds - (time.process_time() - cpu_start)
 
-    def run(strategy: str, pr: _Problem, w0: np.ndarray, **kw: float) -> _Result:
+    def run(strategy: str, pr: _Problem, w0: np.ndarray, share: float = 1.0,
+            **kw: float) -> _Result:
         its, secs = left()
+        its, secs = int(its * share), secs * share
         t0 = time.perf_counter()
         res = _run(pr, w0, max_iter=its, seconds=secs, tol=settings.tol, **kw)
         attempts.append({"strategy": strategy, "status": res.status,
@@ -394,9 +402,17 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
 
     lay = prob.tr.layout
     cold = lay.join(prob.x_guess, prob.u_guess)
-    res = run("guess" if guess is not None else "cold", prob, cold)
+    # The first start gets `_FIRST_SHARE` of the budget, so that a restart has some left.
+    res = run("guess" if guess is not None else "cold", prob, cold, share=_FIRST_SHARE)
     if res.status in _RETRY_STATUSES and usable():
-        res = run("smaller bound push", prob, cold, bound_push=_RETRY_BOUND_PUSH)
+        res = run("smaller bound push", prob, cold, bound_push=_RETRY_BOUND_PUSH,
+                  share=0.5)
+    if PlanStatus.of(res.status) is not PlanStatus.CONVERGED and model == "1d" and usable():
+        finer = build_mesh(course, settings.h_min_m, h_max / 2, None if settings.uniform_m
+                           is None else settings.uniform_m / 2, start_m=start_m, h_cap_m=cap)
+        prob = _problem(course, rider, conditions, settings, model, finer, v0, start, guess)
+        lay = prob.tr.layout
+        res = run("finer mesh", prob, lay.join(prob.x_guess, prob.u_guess), share=0.7)
     if (PlanStatus.of(res.status) is not PlanStatus.CONVERGED and model == "3d"
             and guess is None and usable()):
         _, secs = left()
