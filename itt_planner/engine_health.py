@@ -11,9 +11,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 from itt_planner.advice import Diagnostic, Level
+from itt_planner.solver import CONVERGED_STATUSES
 
-#: IPOPT statuses of a converged solve (anything else accepted is counted unconverged).
-CONVERGED = ("Solve_Succeeded",)
+#: IPOPT statuses of a converged solve (the solver seam's; anything else accepted, a
+#: budget-capped feasible iterate, is counted unconverged).
+CONVERGED = CONVERGED_STATUSES
 #: Engine counters the solver diagnostic shows.
 _SOLVER_COUNTERS = ("solves", "failures", "overruns", "exceptions", "fallbacks",
                     "unconverged_solves", "course_replans_asked", "course_replans",
@@ -29,8 +31,7 @@ class EngineCounts:
         advice: advices published; fallbacks: of them, the last good advice shifted.
         solves, solve_failures: horizon solves and those that failed, raised or overran.
         unconverged_solves: accepted horizon solves that did not converge (a
-            budget-capped feasible iterate, "Suboptimal_Feasible", or IPOPT's acceptable
-            level).
+            budget-capped feasible iterate, "Suboptimal_Feasible").
         course_replans_asked, course_replans_adopted, course_replan_failures:
             re-solves of the rest of the course asked for, adopted, failed (a worker
             error or an unconverged solve: the plan in force stays).
