@@ -35,8 +35,11 @@ start may use `_FIRST_SHARE` of it):
   has to confirm;
 - converged but not verified (a speed the mesh does not resolve, e.g. a rider slowed
   far below the guess): the mesh is refined where the plan is slow
-  (`mesh.speed_spacing_m` on the plan's own speeds and tyre forces), and the plan is
-  re-solved from itself, at most `_REFINE_ROUNDS` times.
+  (`mesh.speed_spacing_m` on the plan's own speeds and tyre forces), and re-solved from
+  the default guess (not from the invalid plan, which rides on the artefact), at most
+  `_REFINE_ROUNDS` times; a 1D plan still invalid then gets the whole mesh at half the
+  spacing (at 20 m intervals the 1D plans of bologna and rovereto-like came out
+  invalid, 2026-12-01).
 
 Boundary conditions (model.md section 5): upright on the centre line, `W_n = W_C/W_max`,
 `E_n = 1`, end state free. Launch: the start speed is raised from `start_speed_mps` just
@@ -437,8 +440,17 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
                            start_m=start_m, h_cap_m=cap)
         if len(nodes) <= len(prob.nodes) * 1.001:
             break  # the plan's speeds ask for no finer mesh: the mismatch is not the step
-        prob = _problem(course, rider, conditions, settings, model, nodes, v0, start, plan)
+        # From the default guess (or the caller's), not from the invalid plan: that one
+        # rides on the artefact the finer mesh removes.
+        prob = _problem(course, rider, conditions, settings, model, nodes, v0, start, guess)
         res = run("refined where slow", prob, prob.tr.layout.join(prob.x_guess, prob.u_guess))
+        plan = _finish(prob, res, course, rider, conditions, settings, attempts)
+    if plan.status == PlanStatus.INVALID.value and model == "1d" and usable():
+        # Still on an artefact: the whole mesh at half the spacing (bologna at 20 m).
+        finer = build_mesh(course, settings.h_min_m, h_max / 2, None if settings.uniform_m
+                           is None else settings.uniform_m / 2, start_m=start_m, h_cap_m=cap)
+        prob = _problem(course, rider, conditions, settings, model, finer, v0, start, guess)
+        res = run("finer mesh", prob, prob.tr.layout.join(prob.x_guess, prob.u_guess))
         plan = _finish(prob, res, course, rider, conditions, settings, attempts)
     if plan.status != PlanStatus.CONVERGED.value:
         log.warning("full-course %s OCP on %s: %s (%s) after %d iterations", model, course.name,
