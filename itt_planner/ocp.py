@@ -35,9 +35,9 @@ start may use `_FIRST_SHARE` of it):
   has to confirm;
 - converged but not verified (a speed the mesh does not resolve, e.g. a rider slowed
   far below the guess): the mesh is refined where the plan is slow
-  (`mesh.speed_spacing_m` on the plan's own speeds and tyre forces), and re-solved from
-  the default guess (not from the invalid plan, which rides on the artefact), at most
-  `_REFINE_ROUNDS` times; a 1D plan still invalid then gets the whole mesh at half the
+  (`mesh.speed_spacing_m` on the plan's own speeds and tyre forces), and re-solved (1D
+  from the default guess, not from the invalid plan, which rides on the artefact; 3D
+  from the plan), at most `_REFINE_ROUNDS` times; a 1D plan still invalid then gets the whole mesh at half the
   spacing (at 20 m intervals the 1D plans of bologna and rovereto-like came out
   invalid, 2026-12-01).
 
@@ -440,9 +440,12 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
                            start_m=start_m, h_cap_m=cap)
         if len(nodes) <= len(prob.nodes) * 1.001:
             break  # the plan's speeds ask for no finer mesh: the mismatch is not the step
-        # From the default guess (or the caller's), not from the invalid plan: that one
-        # rides on the artefact the finer mesh removes.
-        prob = _problem(course, rider, conditions, settings, model, nodes, v0, start, guess)
+        # 1D: from the default guess (or the caller's), not from the invalid plan, which
+        # rides on the artefact the finer mesh removes (bologna at 20 m). 3D: from the
+        # plan, whose mismatch was the launch (the hairpin from the default guess on the
+        # refined mesh: Restoration_Failed after 340 iterations; from the plan: 10).
+        prob = _problem(course, rider, conditions, settings, model, nodes, v0, start,
+                        guess if model == "1d" else plan)
         res = run("refined where slow", prob, prob.tr.layout.join(prob.x_guess, prob.u_guess))
         plan = _finish(prob, res, course, rider, conditions, settings, attempts)
     if plan.status == PlanStatus.INVALID.value and model == "1d" and usable():
