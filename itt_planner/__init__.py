@@ -5,7 +5,7 @@ control problems (CasADi), state estimation, the pacing engine, ride logs, Rerun
 logging and the CLI. See docs in README.md and the physics in model.md.
 """
 
-from itt_planner.advice import Advice, Diagnostic, Level
+from itt_planner.advice import Advice, Cue, Diagnostic, Level
 from itt_planner.conditions import Conditions
 from itt_planner.course import Corner, Course, GeoOrigin
 from itt_planner.errors import CourseError, IttError, RideLogError, RiderError, SolveError
@@ -21,6 +21,7 @@ __all__ = [
     "Corner",
     "Course",
     "CourseError",
+    "Cue",
     "Diagnostic",
     "GeoOrigin",
     "GpsFix",

@@ -22,6 +22,7 @@ from typing import Any
 from tqdm import tqdm
 
 from itt_msgs_py import topics
+from itt_planner.advice_shaping import advice_stats
 from itt_planner.errors import RideLogError
 from itt_planner.ridelog import RideLogReader, message_count
 from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
@@ -62,7 +63,8 @@ class ReplayResult:
     topics_out: dict[str, int] = field(default_factory=dict)
     solve_times_s: list[float] = field(default_factory=list)
     fallbacks: int = 0
-    counts: dict[str, int] = field(default_factory=dict)
+    counts: dict[str, Any] = field(default_factory=dict)
+    advice_stats: dict[str, Any] = field(default_factory=dict)
 
     @property
     def realtime_factor(self) -> float:
@@ -80,7 +82,7 @@ class ReplayResult:
             "rrd": str(self.rrd) if self.rrd else None,
             "warnings": list(self.warnings), "errors": list(self.errors),
             "topics_out": dict(self.topics_out), "fallbacks": self.fallbacks,
-            "counts": dict(self.counts),
+            "counts": dict(self.counts), "advice_stats": dict(self.advice_stats),
             "solve_time_median_s": solve[len(solve) // 2] if solve else None,
             "solve_time_max_s": solve[-1] if solve else None,
         }
@@ -182,6 +184,11 @@ def replay(log_path: str | Path, session: RideSession, *,
     result.warnings.extend(f"input had {n} messages on {topic}: replaced by the replay's own"
                            for topic, n in sorted(replaced.items()))
     result.warnings.extend(session.warnings())
+    if session.advice is not None:
+        result.advice_stats = advice_stats(session.advice)
+        if unexplained := result.advice_stats["unexplained_steps"]:
+            result.warnings.append(f"{unexplained} target power steps over "
+                                   f"{result.advice_stats['step_limit_w']:.0f} W without a cue")
     return result
 
 
@@ -254,7 +261,7 @@ def replay_ride(log_path: str | Path, config: SessionConfig, *,
     """
     sinks = ((f"file:{rrd}",) if rrd is not None else ()) + tuple(rerun_sinks)
     session = RideSession.open(config, output_log=output, rerun_sinks=sinks,
-                               metadata={"input": str(log_path)})
+                               metadata={"input": str(log_path)}, keep_advice=True)
     result = replay(log_path, session, settings=settings, progress=progress)
     result.rrd = Path(rrd) if rrd is not None else None
     return result

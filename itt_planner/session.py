@@ -147,12 +147,15 @@ class RideSession:
 
     def __init__(self, config: SessionConfig, engine: PacingEngine, *,
                  writer: RideLogWriter | None = None, recorder: RideRecorder | None = None,
-                 publish: Publish | None = None) -> None:
+                 publish: Publish | None = None, keep_advice: bool = False) -> None:
         self.config = config
         self.engine = engine
         self.writer = writer
         self.recorder = recorder
         self.publish = publish
+        #: Every advice, for `advice_stats` (a replay keeps them; a live node does not).
+        self.advice: list[Advice] | None = [] if keep_advice else None
+        self._plan_version = engine.plan_version
         self.advice_out = 0
         self.fallbacks = 0
         #: Input messages that did not decode, per topic (counted, never fatal).
@@ -164,7 +167,8 @@ class RideSession:
     @classmethod
     def open(cls, config: SessionConfig, *, output_log: str | Path | None = None,
              rerun_sinks: tuple[str, ...] = (), publish: Publish | None = None,
-             metadata: dict[str, str] | None = None) -> RideSession:
+             metadata: dict[str, str] | None = None, keep_advice: bool = False
+             ) -> RideSession:
         """Build the engine and open the sinks: MCAP `output_log`, Rerun `rerun_sinks`
         (`RerunSink.parse` forms: `file:X.rrd`, `spawn`, `connect[:URL]`, `serve`).
 
@@ -194,7 +198,8 @@ class RideSession:
             if writer is not None:
                 writer.close()
             raise
-        session = cls(config, engine, writer=writer, recorder=recorder, publish=publish)
+        session = cls(config, engine, writer=writer, recorder=recorder, publish=publish,
+                      keep_advice=keep_advice)
         if writer is not None:
             writer.add_metadata(SESSION_METADATA, {**session.describe(), **(metadata or {})})
         return session
@@ -255,10 +260,15 @@ class RideSession:
         if advice is not None:
             self.advice_out += 1
             self.fallbacks += bool(advice.fallback)
+            if self.advice is not None:
+                self.advice.append(advice)
             if self.writer is not None:
                 with self._io_lock:
                     self.writer.write_advice(advice)
             if self.recorder is not None:
+                if advice.plan_version != self._plan_version:  # a re-solved plan adopted
+                    self._plan_version = advice.plan_version
+                    self.recorder.log_plan(self.engine.plan, advice.plan_version)
                 self.recorder.log_state(advice.state)
                 self.recorder.log_advice(advice)
             if self.publish is not None:
