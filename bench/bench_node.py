@@ -33,7 +33,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # the test ride of the ROS tests (ros_support)
 
-from ros_support import RIDE_T0_S, Proc, Ride, cli, make_ride
+from ros_support import RIDE_T0_S, RIDER, Proc, Ride, cli, make_ride
 
 from bench.bench_ros_echo import echo_round_trips_ms
 from itt_msgs_py import deserialize, serialize, topics
@@ -51,7 +51,8 @@ def node_latency_ms(ride: Ride, folder: Path, seconds: float, env: dict[str, str
     folder.mkdir(parents=True, exist_ok=True)
     # on_plan_band_j 0: every advice is a horizon solve (the rider here follows the plan,
     # so with the default band the advice would be the plan itself, no solve).
-    node = Proc(cli("node", "--course", str(ride.course), "--plan", str(ride.plan), "--json",
+    node = Proc(cli("node", "--course", str(ride.course), "--rider", RIDER, "--plan",
+                    str(ride.plan), "--json",
                     "--ros-args", "-p", "on_plan_band_j:=0.0"), env, folder / "node.log")
     arrivals: list[tuple[float, bytes]] = []
     sent: dict[float, float] = {}  # GPS stamp -> wall time published

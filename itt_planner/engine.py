@@ -240,7 +240,7 @@ class PacingEngine:
                 refits_up=st["cp_refits_up"], refits_down=st["cp_refits_down"],
                 cp_in_use_w=self._cp.cp_in_use_w, plan_version=self.plan_version,
                 plan_status=self.plan.solver_status,
-                plan_converged=self.plan.solver_status in CONVERGED)
+                plan_converged=self.plan.converged)
 
     @property
     def critical_power_w(self) -> float:

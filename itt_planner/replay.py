@@ -140,7 +140,6 @@ def replay(log_path: str | Path, session: RideSession, *,
     pacer = _Pacer(settings.speed)
     bar = tqdm(total=message_count(log_path), unit="msg", file=sys.stderr,
                disable=not progress, desc=Path(log_path).name)
-    clock = _StampClock(session)
     start = time.perf_counter()
     first: float | None = None
     last: float | None = None
@@ -152,7 +151,7 @@ def replay(log_path: str | Path, session: RideSession, *,
                     replaced[raw.topic] = replaced.get(raw.topic, 0) + 1
                     continue
                 stamp = raw.log_time_ns / 1e9  # correctly rounded: whole seconds stay whole
-                clock.advance_to(stamp)  # the advice of earlier stamps goes out first
+                session.advance_to(stamp)  # the advice of earlier stamps goes out first
                 pacer.wait(stamp)
                 result.messages_in += 1
                 first = stamp if first is None else first
@@ -164,7 +163,7 @@ def replay(log_path: str | Path, session: RideSession, *,
         except RideLogError as err:
             # Everything readable was replayed; finish the output and report the damage.
             result.errors.append(str(err))
-        clock.finish()
+        session.finish()
         if session.writer is not None:
             for name, record in reader.metadata.items():
                 if name != REPLAY_METADATA:  # an earlier replay's: the session writes its own
@@ -190,44 +189,6 @@ def replay(log_path: str | Path, session: RideSession, *,
             result.warnings.append(f"{unexplained} target power steps over "
                                    f"{result.advice_stats['step_limit_w']:.0f} W without a cue")
     return result
-
-
-class _StampClock:
-    """The session's timer on the stamp clock.
-
-    Like the node's timer under `use_sim_time`, it fires every `period_s` of stamp time
-    from the first message (through gaps in the log too); the tick at T runs once the
-    log has moved past T, so every message stamped up to T is in before the engine
-    plans. The engine decides at each tick whether a replan is due.
-    """
-
-    def __init__(self, session: RideSession) -> None:
-        self.session = session
-        self.period_s = min(session.config.replan_period_s,
-                            session.config.diagnostics_period_s)
-        self.first_tick: float | None = None
-        self.ticks = 0
-        self.last_stamp = -math.inf
-
-    def _next_tick(self) -> float:
-        assert self.first_tick is not None
-        # Multiplied, not accumulated: no drift over a long ride.
-        return self.first_tick + self.ticks * self.period_s
-
-    def advance_to(self, stamp_s: float) -> None:
-        if self.first_tick is None:
-            self.first_tick = stamp_s
-        while self._next_tick() < stamp_s:
-            self.session.tick(self._next_tick())
-            self.ticks += 1
-        self.last_stamp = max(self.last_stamp, stamp_s)
-
-    def finish(self) -> None:
-        if self.first_tick is None:
-            return
-        while self._next_tick() <= self.last_stamp:
-            self.session.tick(self._next_tick())
-            self.ticks += 1
 
 
 def parse_speed(text: str) -> float | None:

@@ -10,8 +10,9 @@ a log, the node (`itt_planner_ros.pacing_node`) only converts ROS messages.
   plan cache) and builds the engine; outputs are sinks: an MCAP ride log, a Rerun
   recording, and a `publish` callback (the node's publishers).
 - `on_sample` feeds one sample (GPS, speed, power) to the engine and the sinks.
-- `tick(stamp_s)` is the session's timer on the stamp clock: the engine decides whether a
-  replan is due; diagnostics go out every `diagnostics_period_s` of stamp time.
+- `advance_to(stamp_s)` runs the session's timer on the stamp clock (a fixed grid, the
+  same for a node and a replay); at each `tick` the engine decides whether a replan is
+  due; diagnostics go out every `diagnostics_period_s` of stamp time.
 - `warnings()` turns what was not used silently (fallbacks, failed re-solves, refits,
   an unconverged plan) into one line each, with counts.
 """
@@ -32,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 from itt_msgs_py import DEFAULT_NAMESPACE
 from itt_planner.advice import Advice, Diagnostic, Level
+from itt_planner.errors import SolveError
 from itt_planner.samples import GpsFix, PowerReading, Sample, WheelSpeed
 
 if TYPE_CHECKING:
@@ -105,6 +107,7 @@ def build_engine(config: SessionConfig) -> PacingEngine:
     from itt_planner.plan import Plan  # noqa: PLC0415
     from itt_planner.plan_cache import load_or_solve  # noqa: PLC0415
     from itt_planner.rider import load_rider  # noqa: PLC0415
+    from itt_planner.solver import PlanStatus  # noqa: PLC0415
 
     course = load_course(config.course)
     rider = load_rider(config.rider)
@@ -114,6 +117,12 @@ def build_engine(config: SessionConfig) -> PacingEngine:
     else:
         plan = load_or_solve(course, rider, conditions, OcpSettings(), config.model,
                              cache_dir=Path(config.plan_cache))
+    if plan.status in (PlanStatus.FAILED, PlanStatus.INVALID):
+        # A capped plan is still a verified trajectory (advised, with a warning); a failed
+        # or invalid one is not a plan a rider should be given.
+        raise SolveError(f"the full-course plan of {config.course} for {config.rider} is "
+                         f"{plan.status} ({plan.solver_status}): not used",
+                         status=plan.solver_status)
     horizon = HorizonSettings(horizon_m=config.horizon_m)
     if config.deterministic:
         # IPOPT's wall-time cap would make the result depend on the machine's load; the
@@ -147,8 +156,14 @@ class RideSession:
 
     def __init__(self, config: SessionConfig, engine: PacingEngine, *,
                  writer: RideLogWriter | None = None, recorder: RideRecorder | None = None,
-                 publish: Publish | None = None, keep_advice: bool = False) -> None:
+                 publish: Publish | None = None, keep_advice: bool = False,
+                 max_catch_up_s: float = math.inf) -> None:
         self.config = config
+        self.tick_period_s = min(config.replan_period_s, config.diagnostics_period_s)
+        self.max_catch_up_s = max_catch_up_s
+        self._first_tick: float | None = None
+        self._ticks = 0
+        self._last_stamp = -math.inf
         self.engine = engine
         self.writer = writer
         self.recorder = recorder
@@ -167,8 +182,8 @@ class RideSession:
     @classmethod
     def open(cls, config: SessionConfig, *, output_log: str | Path | None = None,
              rerun_sinks: tuple[str, ...] = (), publish: Publish | None = None,
-             metadata: dict[str, str] | None = None, keep_advice: bool = False
-             ) -> RideSession:
+             metadata: dict[str, str] | None = None, keep_advice: bool = False,
+             max_catch_up_s: float = math.inf) -> RideSession:
         """Build the engine and open the sinks: MCAP `output_log`, Rerun `rerun_sinks`
         (`RerunSink.parse` forms: `file:X.rrd`, `spawn`, `connect[:URL]`, `serve`).
 
@@ -199,7 +214,7 @@ class RideSession:
                 writer.close()
             raise
         session = cls(config, engine, writer=writer, recorder=recorder, publish=publish,
-                      keep_advice=keep_advice)
+                      keep_advice=keep_advice, max_catch_up_s=max_catch_up_s)
         if writer is not None:
             writer.add_metadata(SESSION_METADATA, {**session.describe(), **(metadata or {})})
         return session
@@ -254,6 +269,41 @@ class RideSession:
                 self.writer.write_raw(raw)
 
     # ---- the timer ------------------------------------------------------------------
+    def advance_to(self, stamp_s: float) -> None:
+        """Run every tick of the stamp-clock grid before `stamp_s`.
+
+        The session's timer fires every `min(replan_period_s, diagnostics_period_s)` of
+        stamp time on a grid of whole multiples of that period, from the first stamp it
+        sees (a replay's first message, a node's first clock reading), so a node and a
+        replay of one log advise at the same stamps. The tick at T runs once the clock has moved past T: every input stamped
+        up to T is in before the engine plans. A gap in the stamps is ticked through,
+        unless it is longer than `max_catch_up_s` (a restarted player jumping ahead):
+        then the grid moves on to `stamp_s`.
+        """
+        if self._first_tick is None:
+            # On whole multiples of the period: a node that starts late (its first clock
+            # reading after the log's first stamp) still ticks at the replay's stamps.
+            self._first_tick = math.floor(stamp_s / self.tick_period_s) * self.tick_period_s
+        if stamp_s - self._next_tick() > self.max_catch_up_s:
+            self._ticks = math.floor((stamp_s - self._first_tick) / self.tick_period_s)
+        while self._next_tick() < stamp_s:
+            self.tick(self._next_tick())
+            self._ticks += 1
+        self._last_stamp = max(self._last_stamp, stamp_s)
+
+    def finish(self) -> None:
+        """Run the ticks up to and including the last stamp seen (end of a log)."""
+        if self._first_tick is None:
+            return
+        while self._next_tick() <= self._last_stamp:
+            self.tick(self._next_tick())
+            self._ticks += 1
+
+    def _next_tick(self) -> float:
+        assert self._first_tick is not None
+        # Multiplied, not accumulated: no drift over a long ride.
+        return self._first_tick + self._ticks * self.tick_period_s
+
     def tick(self, stamp_s: float) -> Advice | None:
         """Run the engine's replan at `stamp_s`; send advice and due diagnostics out."""
         advice = self.engine.update(stamp_s)
@@ -309,8 +359,8 @@ class RideSession:
         counts = self.engine.counts
         out = []
         if not counts.plan_converged:
-            out.append(f"the plan in force did not converge ({counts.plan_status}): advice "
-                       "from it is not optimal")
+            out.append(f"the plan in force is not converged ({self.engine.plan.status}, "
+                       f"{counts.plan_status}): advice from it is not optimal")
         if self.fallbacks:
             share = 100.0 * self.fallbacks / max(self.advice_out, 1)
             out.append(f"{self.fallbacks} of {self.advice_out} advice ({share:.1f} %) were "

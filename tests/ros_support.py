@@ -17,6 +17,8 @@ import numpy as np
 
 #: POSIX stamp of the synthetic ride's start (2026-11-22 08:00 UTC).
 RIDE_T0_S = 1795334400.0
+#: The rider of the test ride (its full-course plan on the hairpin course converges).
+RIDER = "typical"
 
 
 @dataclass(frozen=True)
@@ -53,7 +55,7 @@ def make_ride(folder: Path, *, input_hz: float = 4.0, gps_hz: float = 1.0,
     ride = Ride(course=course_path, plan=plan_path, log=folder / "ride.mcap",
                 duration_s=float(end))
     with RideLogWriter(ride.log, metadata=RideMetadata(source="tests/ros_support.py",
-                                                       rider="paper")) as writer:
+                                                       rider=RIDER)) as writer:
         for sample in samples:
             writer.write_sample(sample)
     return ride
@@ -63,14 +65,14 @@ _SOLVED: dict[Path, tuple[Any, Any, Path, Path]] = {}
 
 
 def _course_and_plan(folder: Path) -> tuple[Any, Any, Path, Path]:
-    """The hairpin course and its `paper` plan, solved and saved once per folder."""
+    """The hairpin course and its `RIDER` plan, solved and saved once per folder."""
     if folder not in _SOLVED:
         from itt_planner.ocp import solve_plan
         from itt_planner.rider import PRESETS
         from itt_planner.simulate import hairpin_course
 
         course = hairpin_course()
-        plan = solve_plan(course, PRESETS["paper"])
+        plan = solve_plan(course, PRESETS[RIDER])
         _SOLVED[folder] = (course, plan, course.save(folder / "hairpin.course.npz"),
                            plan.save(folder / "hairpin.plan.npz"))
     return _SOLVED[folder]

@@ -49,6 +49,8 @@ NODE_PARAMS = {'tick_period_s': 0.1, 'rerun_sink': '', 'output_log': '',
 INPUTS = ((topics.GPS_FIX, msg_to_gps_fix), (topics.SPEED, msg_to_wheel_speed),
           (topics.POWER, msg_to_power_reading))
 OUTPUTS = (topics.TARGET_POWER, topics.TARGET_LINE, topics.ADVICE, topics.DIAGNOSTICS)
+#: A clock jump longer than this (a player restarted further on) is not ticked through.
+MAX_CATCH_UP_S = 5.0
 
 
 class PacingNode(Node):
@@ -67,7 +69,8 @@ class PacingNode(Node):
         self.params = value
         sinks = (value['rerun_sink'],) if value['rerun_sink'] else ()
         self.session = RideSession.open(config, output_log=value['output_log'] or None,
-                                        rerun_sinks=sinks, publish=self._publish)
+                                        rerun_sinks=sinks, publish=self._publish,
+                                        max_catch_up_s=MAX_CATCH_UP_S)
         self._state_path = Path(value['state_file']) if value['state_file'] else None
         self._last_save = time.monotonic()
         try:
@@ -109,7 +112,7 @@ class PacingNode(Node):
         now = self._now_s()
         if now is not None:
             try:
-                self.session.tick(now)
+                self.session.advance_to(now)
             except Exception as err:  # noqa: BLE001  (a live node outlives a broken tick)
                 self.session.on_malformed('engine_exception', f'{type(err).__name__}: {err}')
         if time.monotonic() - self._last_save >= self.params['state_period_s']:
@@ -170,6 +173,9 @@ def run(args: list[str] | None = None, *, namespace: str = topics.DEFAULT_NAMESP
         try:
             executor.spin()
         finally:
+            # Kill a running course re-solve first: a tick waiting for it then returns,
+            # and the executor's shutdown does not wait minutes for that solve.
+            node.session.engine.close()
             executor.shutdown()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
