@@ -81,7 +81,7 @@ def _start_recorder(output: Path, *topic_names: str,
 
 def _stop(proc: subprocess.Popen[str], sig: signal.Signals) -> dict:
     proc.send_signal(sig)
-    out, err = proc.communicate(timeout=30)
+    out, err = proc.communicate(timeout=60)  # a loaded machine tears down slowly
     assert proc.returncode == 0, err
     sys.stderr.write(err)  # shown with a failure
     return json.loads(out.strip().splitlines()[-1])
