@@ -390,7 +390,9 @@ def test_faults_player_and_node_restarts(ride: Ride, tmp_path: Path,
     assert first_node.max() > 0.45 * ride.duration_s
     # ... and the restarted node went on from the persisted W', not from a fresh one.
     fresh = 22_000.0  # W' of the `typical` rider
-    assert saved["w_prime_j"] < 0.8 * fresh and second_node
+    # W' used by then (1.5 kJ: three times the balance's error), so a resume from the file
+    # and a fresh start are told apart below.
+    assert saved["w_prime_j"] < fresh - 1500.0 and second_node
     first = second_node[0]
     assert first.state.s_m >= saved["s_m"] - 50 > 0.3 * HAIRPIN_LENGTH_M  # no jump back
     assert abs(first.w_prime_now_j - saved["w_prime_j"]) < 0.5 * (fresh - saved["w_prime_j"])
