@@ -11,7 +11,7 @@ a log, the node (`itt_planner_ros.pacing_node`) only converts ROS messages.
   recording, and a `publish` callback (the node's publishers).
 - `on_sample` feeds one sample (GPS, speed, power) to the engine and the sinks.
 - `advance_to(stamp_s)` runs the session's timer on the stamp clock (a fixed grid, the
-  same for a node and a replay); at each `tick` the engine decides whether a replan is
+  same for a node and a replay); at each tick the engine decides whether a replan is
   due; diagnostics go out every `diagnostics_period_s` of stamp time.
 - `warnings()` turns what was not used silently (fallbacks, failed re-solves, refits,
   an unconverged plan) into one line each, with counts.
@@ -287,7 +287,7 @@ class RideSession:
         if stamp_s - self._next_tick() > self.max_catch_up_s:
             self._ticks = math.floor((stamp_s - self._first_tick) / self.tick_period_s)
         while self._next_tick() < stamp_s:
-            self.tick(self._next_tick())
+            self._tick(self._next_tick())
             self._ticks += 1
         self._last_stamp = max(self._last_stamp, stamp_s)
 
@@ -296,7 +296,7 @@ class RideSession:
         if self._first_tick is None:
             return
         while self._next_tick() <= self._last_stamp:
-            self.tick(self._next_tick())
+            self._tick(self._next_tick())
             self._ticks += 1
 
     def _next_tick(self) -> float:
@@ -304,7 +304,7 @@ class RideSession:
         # Multiplied, not accumulated: no drift over a long ride.
         return self._first_tick + self._ticks * self.tick_period_s
 
-    def tick(self, stamp_s: float) -> Advice | None:
+    def _tick(self, stamp_s: float) -> Advice | None:
         """Run the engine's replan at `stamp_s`; send advice and due diagnostics out."""
         advice = self.engine.update(stamp_s)
         if advice is not None:
