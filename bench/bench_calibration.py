@@ -18,12 +18,12 @@ import time
 import numpy as np
 
 from itt_planner.calibration.ride_data import air_density_kgpm3
-from itt_planner.conditions import Conditions
-from itt_planner.simulate import simulate_ride
+from itt_planner.model.conditions import Conditions
+from itt_planner.sim.simulate import simulate_ride
 
 from itt_planner.calibration import CalibrationError, CalibrationOptions, calibrate
 from itt_planner.calibration.validate import validate_ride
-from itt_planner.course_loader import load_course
+from itt_planner.course.loader import load_course
 from tests.real_data import RIDES, locate
 
 

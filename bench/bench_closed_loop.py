@@ -29,15 +29,15 @@ from pathlib import Path
 
 import numpy as np
 
-from itt_planner.conditions import Conditions
-from itt_planner.course_loader import load_course
-from itt_planner.course_replan import start_from
-from itt_planner.engine import EngineSettings
-from itt_planner.horizon import HorizonPlanner, HorizonSettings
-from itt_planner.ocp import OcpSettings, solve_plan
-from itt_planner.plan_cache import load_or_solve
-from itt_planner.rider import PRESETS
-from itt_planner.simulate import planning_conditions, simulate_ride
+from itt_planner.model.conditions import Conditions
+from itt_planner.course.loader import load_course
+from itt_planner.live.course_replan import start_from
+from itt_planner.live.engine import EngineSettings
+from itt_planner.ocp.horizon import HorizonPlanner, HorizonSettings
+from itt_planner.ocp.course_problem import OcpSettings, solve_plan
+from itt_planner.ocp.cache import load_or_solve
+from itt_planner.model.rider import PRESETS
+from itt_planner.sim.simulate import planning_conditions, simulate_ride
 
 RIDER = PRESETS["paper"]
 

@@ -32,10 +32,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-from itt_planner.course import Course
-from itt_planner.course_builder import build_course
-from itt_planner.course_loader import load_course
-from itt_planner.rider import Rider
+from itt_planner.course.geometry import Course
+from itt_planner.course.builder import build_course
+from itt_planner.course.loader import load_course
+from itt_planner.model.rider import Rider
 
 RIDER = Rider(name="issue18", mass_kg=86.0, drag_area_m2=0.273, critical_power_w=290.0)
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -100,7 +100,7 @@ def course_by_name(name: str) -> Course:
 def _case(name: str, model: str, scale: float, queue: mp.Queue) -> None:
     import numpy as np  # noqa: PLC0415
 
-    from itt_planner.ocp import OcpSettings, solve_plan  # noqa: PLC0415
+    from itt_planner.ocp.course_problem import OcpSettings, solve_plan  # noqa: PLC0415
 
     row: dict[str, Any] = {"course": name, "model": model, "mesh": scale}
     try:

@@ -33,9 +33,9 @@ import pymap3d
 from scipy.interpolate import make_smoothing_spline
 from scipy.optimize import least_squares
 
-from itt_planner.course_fit import fit_course
-from itt_planner.track_clean import clean_track
-from itt_planner.track_files import read_recording
+from itt_planner.course.fit import fit_course
+from itt_planner.course.track_clean import clean_track
+from itt_planner.course.track_files import read_recording
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))  # the synthetic track and its error measure

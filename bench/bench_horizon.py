@@ -19,14 +19,14 @@ import time
 
 import numpy as np
 
-from itt_planner.course import Course
-from itt_planner.course_loader import load_course
-from itt_planner.engine import EngineSettings
-from itt_planner.horizon import SUBOPTIMAL_FEASIBLE, HorizonPlanner, HorizonSettings
-from itt_planner.ocp import solve_plan
-from itt_planner.plan_cache import load_or_solve
-from itt_planner.rider import PRESETS
-from itt_planner.state import RiderState
+from itt_planner.course.geometry import Course
+from itt_planner.course.loader import load_course
+from itt_planner.live.engine import EngineSettings
+from itt_planner.ocp.horizon import SUBOPTIMAL_FEASIBLE, HorizonPlanner, HorizonSettings
+from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.cache import load_or_solve
+from itt_planner.model.rider import PRESETS
+from itt_planner.model.state import RiderState
 
 
 def state_at(course, plan, s: float) -> RiderState:

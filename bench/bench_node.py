@@ -39,7 +39,7 @@ from bench.bench_ros_echo import echo_round_trips_ms
 from itt_msgs_py import deserialize, serialize, topics
 from itt_msgs_py.convert import from_time, sample_to_msg
 from itt_msgs_py.dds_env import localhost_env
-from itt_planner.ridelog import read_ride_log
+from itt_planner.logs.ridelog import read_ride_log
 from itt_planner_ros.ros_types import edge_node, message_class, qos_profile
 from rclpy.executors import SingleThreadedExecutor
 

@@ -31,14 +31,14 @@ import time
 import casadi as ca
 import numpy as np
 
-from itt_planner.conditions import Conditions
-from itt_planner.course import Course
-from itt_planner.course_loader import load_course
-from itt_planner.mesh import build_mesh, road_data
-from itt_planner.model import ModelParams, build_3d
-from itt_planner.ocp import OcpSettings, bounds, initial_guess, solve_plan, start_speed
-from itt_planner.plan import Plan
-from itt_planner.rider import PRESETS
+from itt_planner.model.conditions import Conditions
+from itt_planner.course.geometry import Course
+from itt_planner.course.loader import load_course
+from itt_planner.ocp.mesh import build_mesh, road_data
+from itt_planner.model.dynamics import ModelParams, build_3d
+from itt_planner.ocp.course_problem import OcpSettings, bounds, initial_guess, solve_plan, start_speed
+from itt_planner.ocp.plan import Plan
+from itt_planner.model.rider import PRESETS
 
 
 def peak_mb() -> float:

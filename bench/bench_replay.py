@@ -1,6 +1,6 @@
 """Benchmark of the embedded replay: a ~24-minute ride with 1 Hz replanning.
 
-Runs `itt_planner.replay.replay_ride`, exactly what `itt-planner replay --speed max` runs
+Runs `itt_planner.session.replay.replay_ride`, exactly what `itt-planner replay --speed max` runs
 (deterministic planner: IPOPT's iteration cap is the budget, no wall-time cap), on the
 `make demo` bag `bags/typical_verona-like_cp-overestimated.mcap` (a simulated 23-minute
 ride whose real CP is 5 % below the belief: GPS 1 Hz with 3 m noise, speed and power
@@ -29,14 +29,14 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from itt_planner.conditions import Conditions  # noqa: E402
-from itt_planner.course_loader import load_course  # noqa: E402
-from itt_planner.ocp import OcpSettings  # noqa: E402
-from itt_planner.plan_cache import load_or_solve  # noqa: E402
-from itt_planner.replay import replay_ride  # noqa: E402
-from itt_planner.session import SessionConfig  # noqa: E402
-from itt_planner.ridelog import RideLogReader  # noqa: E402
-from itt_planner.rider import PRESETS  # noqa: E402
+from itt_planner.model.conditions import Conditions  # noqa: E402
+from itt_planner.course.loader import load_course  # noqa: E402
+from itt_planner.ocp.course_problem import OcpSettings  # noqa: E402
+from itt_planner.ocp.cache import load_or_solve  # noqa: E402
+from itt_planner.session.replay import replay_ride  # noqa: E402
+from itt_planner.session.ride_session import SessionConfig  # noqa: E402
+from itt_planner.logs.ridelog import RideLogReader  # noqa: E402
+from itt_planner.model.rider import PRESETS  # noqa: E402
 
 COURSE = "verona-like"
 RIDER = "typical"

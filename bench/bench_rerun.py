@@ -30,9 +30,9 @@ import rerun as rr  # noqa: E402
 from synthetic_ride import RIDER, make_plan, make_ride  # noqa: E402
 from test_rerun import record  # noqa: E402
 
-from itt_planner.course_loader import load_course  # noqa: E402
-from itt_planner.rerun_log import RideRecorder  # noqa: E402
-from itt_planner.rerun_sink import RerunSink, open_recording  # noqa: E402
+from itt_planner.course.loader import load_course  # noqa: E402
+from itt_planner.view.rerun_log import RideRecorder  # noqa: E402
+from itt_planner.view.rerun_sink import RerunSink, open_recording  # noqa: E402
 
 LIMIT_BYTES = 50 * 1024 * 1024
 

@@ -14,9 +14,9 @@ import numpy as np
 
 from itt_msgs_py import topics
 from itt_msgs_py.definitions import typestore
-from itt_planner.advice import Advice, Cue, Diagnostic, Level
-from itt_planner.samples import GpsFix, PowerReading, Sample, WheelSpeed
-from itt_planner.state import RiderState
+from itt_planner.live.advice import Advice, Cue, Diagnostic, Level
+from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
+from itt_planner.model.state import RiderState
 
 _T = typestore.types
 Time = _T["builtin_interfaces/msg/Time"]

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import pytest
 
-from itt_planner.conditions import Conditions
-from itt_planner.ocp import OcpSettings
-from itt_planner.plan_cache import load_or_solve
-from itt_planner.rider import PRESETS
-from itt_planner.simulate import hairpin_course, planning_conditions
+from itt_planner.model.conditions import Conditions
+from itt_planner.ocp.course_problem import OcpSettings
+from itt_planner.ocp.cache import load_or_solve
+from itt_planner.model.rider import PRESETS
+from itt_planner.sim.simulate import hairpin_course, planning_conditions
 
 RIDER = PRESETS["paper"]
 #: What the planner believes: dry road, still air, the rider's lateral grip.

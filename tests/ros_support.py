@@ -39,8 +39,8 @@ def make_ride(folder: Path, *, input_hz: float = 4.0, gps_hz: float = 1.0,
     bias + noise, wheel speed, power) sample it at the given rates. The course and plan
     are solved once per process (~10 s).
     """
-    from itt_planner.ridelog import RideLogWriter, RideMetadata
-    from itt_planner.simulate import SensorSettings, sensor_samples
+    from itt_planner.logs.ridelog import RideLogWriter, RideMetadata
+    from itt_planner.sim.simulate import SensorSettings, sensor_samples
 
     folder.mkdir(parents=True, exist_ok=True)
     course, plan, course_path, plan_path = _course_and_plan(folder.parent)
@@ -67,9 +67,9 @@ _SOLVED: dict[Path, tuple[Any, Any, Path, Path]] = {}
 def _course_and_plan(folder: Path) -> tuple[Any, Any, Path, Path]:
     """The hairpin course and its `RIDER` plan, solved and saved once per folder."""
     if folder not in _SOLVED:
-        from itt_planner.ocp import solve_plan
-        from itt_planner.rider import PRESETS
-        from itt_planner.simulate import hairpin_course
+        from itt_planner.ocp.course_problem import solve_plan
+        from itt_planner.model.rider import PRESETS
+        from itt_planner.sim.simulate import hairpin_course
 
         course = hairpin_course()
         plan = solve_plan(course, PRESETS[RIDER])

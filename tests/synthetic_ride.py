@@ -11,12 +11,12 @@ import math
 
 import numpy as np
 
-from itt_planner.advice import Advice, Diagnostic, Level
-from itt_planner.course import Course, GeoOrigin
-from itt_planner.plan import PLAN_ARRAYS, Plan
-from itt_planner.rider import PRESETS, Rider
-from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.state import RiderState
+from itt_planner.live.advice import Advice, Diagnostic, Level
+from itt_planner.course.geometry import Course, GeoOrigin
+from itt_planner.ocp.plan import PLAN_ARRAYS, Plan
+from itt_planner.model.rider import PRESETS, Rider
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.model.state import RiderState
 
 ORIGIN = GeoOrigin(lat_deg=45.438, lon_deg=10.992, alt_m=60.0)
 T0_S = 1_763_800_000.0  # a POSIX stamp (2025-11-22)

@@ -16,17 +16,17 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from itt_planner.advice import Cue
-from itt_planner.advice_shaping import (
+from itt_planner.live.advice import Cue
+from itt_planner.live.advice_shaping import (
     STEP_LIMIT_W, AdviceShaper, ShapingSettings, advice_stats, advice_steps, climb_starts,
 )
-from itt_planner.course_builder import build_course
-from itt_planner.course_replan import CourseReplanSettings
-from itt_planner.cp_monitor import CpMonitor, CpMonitorSettings
-from itt_planner.engine import EngineSettings, PacingEngine
-from itt_planner.estimate import StateEstimator
-from itt_planner.horizon import HorizonPlanner, HorizonSettings
-from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.course.builder import build_course
+from itt_planner.live.course_replan import CourseReplanSettings
+from itt_planner.live.cp_monitor import CpMonitor, CpMonitorSettings
+from itt_planner.live.engine import EngineSettings, PacingEngine
+from itt_planner.live.estimate import StateEstimator
+from itt_planner.ocp.horizon import HorizonPlanner, HorizonSettings
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 
 from hairpin_fixtures import (  # noqa: F401  (course, plan: fixtures)
     PLAN_CONDITIONS, RIDER, course, plan,
@@ -171,7 +171,7 @@ def test_shaped_target_is_never_negative_and_rate_limited_except_at_cues(steps, 
         if out["cue"] in (Cue.COAST, Cue.BRAKE):
             assert out["target_power_w"] == 0.0
         if last is not None:
-            from itt_planner.advice_shaping import step_reason
+            from itt_planner.live.advice_shaping import step_reason
 
             limit = RIDER.power_rate_max_wps * min(dt, ShapingSettings().max_step_s)
             jump = abs(out["target_power_w"] - last["target_power_w"])

@@ -21,14 +21,14 @@ from itt_planner.calibration import (
 )
 from itt_planner.calibration.calibrate import load_rides
 from itt_planner.calibration.ride_data import air_density_kgpm3
-from itt_planner.conditions import Conditions
-from itt_planner.course_builder import build_course
-from itt_planner.model import steady_speed_mps
-from itt_planner.plan import PLAN_ARRAYS, Plan
-from itt_planner.rider import Rider, load_rider
-from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.simulate import simulate_ride
-from itt_planner.track_files import Recording
+from itt_planner.model.conditions import Conditions
+from itt_planner.course.builder import build_course
+from itt_planner.model.dynamics import steady_speed_mps
+from itt_planner.ocp.plan import PLAN_ARRAYS, Plan
+from itt_planner.model.rider import Rider, load_rider
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.sim.simulate import simulate_ride
+from itt_planner.course.track_files import Recording
 
 TRUTH = Rider(name="truth", mass_kg=75.0, drag_area_m2=0.30, crr=0.005, critical_power_w=300.0,
               w_prime_j=20000.0)

@@ -21,7 +21,7 @@ from real_data import COURSES, RIDES, data_path
 from typer.testing import CliRunner
 
 from itt_planner.cli import app
-from itt_planner.course import Course
+from itt_planner.course.geometry import Course
 
 CORPUS = COURSES + RIDES
 runner = CliRunner()

@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from itt_planner.course import Course
-from itt_planner.course_builder import FAKE_ORIGIN, build_course, build_course_file
-from itt_planner.course_loader import load_course
+from itt_planner.course.geometry import Course
+from itt_planner.course.builder import FAKE_ORIGIN, build_course, build_course_file
+from itt_planner.course.loader import load_course
 from itt_planner.errors import CourseError
 
 

@@ -10,9 +10,9 @@ import numpy as np
 import pymap3d
 import pytest
 
-from itt_planner.course_fit import fit_course, fit_course_file
+from itt_planner.course.fit import fit_course, fit_course_file
 from itt_planner.errors import CourseError
-from itt_planner.track_files import Recording
+from itt_planner.course.track_files import Recording
 
 # (kind, turn in degrees or length in m, radius m): straights, a 12 m hairpin of 180 deg,
 # an S-bend of 40 m radius, a 90 deg corner of 25 m.

@@ -17,13 +17,13 @@ import pytest
 from typer.testing import CliRunner
 
 from itt_planner.cli import app
-from itt_planner.course import GPS_ROAD_WIDTH_M
-from itt_planner.course_elevation import ElevationOptions
-from itt_planner.course_fit import CourseOptions, WidthStretch, fit_course
-from itt_planner.course_loader import load_course
-from itt_planner.course_trim import Mark, TrimOptions, parse_mark
+from itt_planner.course.geometry import GPS_ROAD_WIDTH_M
+from itt_planner.course.elevation import ElevationOptions
+from itt_planner.course.fit import CourseOptions, WidthStretch, fit_course
+from itt_planner.course.loader import load_course
+from itt_planner.course.trim import Mark, TrimOptions, parse_mark
 from itt_planner.errors import CourseError
-from itt_planner.track_files import Recording, read_recording
+from itt_planner.course.track_files import Recording, read_recording
 
 LAT0, LON0 = 45.0, 11.0
 #: 58 m, the 94 deg corner (R 12 m), 3000 m north, a 90 deg bend (R 30 m), 3000 m east

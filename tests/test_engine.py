@@ -11,11 +11,11 @@ import threading
 import numpy as np
 import pytest
 
-from itt_planner.advice import Level
-from itt_planner.course_replan import CourseReplanSettings
-from itt_planner.engine import ON_PLAN, EngineSettings, PacingEngine
-from itt_planner.horizon import SUBOPTIMAL_FEASIBLE, HorizonPlanner, HorizonSettings
-from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.live.advice import Level
+from itt_planner.live.course_replan import CourseReplanSettings
+from itt_planner.live.engine import ON_PLAN, EngineSettings, PacingEngine
+from itt_planner.ocp.horizon import SUBOPTIMAL_FEASIBLE, HorizonPlanner, HorizonSettings
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 
 from hairpin_fixtures import (  # noqa: F401  (course, plan: fixtures)
     PLAN_CONDITIONS, RIDER, course, plan,

@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
-from itt_planner.course_fit import fit_course
-from itt_planner.estimate import StateEstimator
-from itt_planner.rider import PRESETS
-from itt_planner.samples import GpsFix, PowerReading, Sample, WheelSpeed
-from itt_planner.simulate import SensorSettings, hairpin_course, sensor_samples
-from itt_planner.track_files import read_recording
+from itt_planner.course.fit import fit_course
+from itt_planner.live.estimate import StateEstimator
+from itt_planner.model.rider import PRESETS
+from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
+from itt_planner.sim.simulate import SensorSettings, hairpin_course, sensor_samples
+from itt_planner.course.track_files import read_recording
 
 RIDER = PRESETS["paper"]
 
@@ -232,7 +232,7 @@ def test_real_ride_on_its_own_track(data_file, name):
 def test_closed_loop_wraps_into_laps():
     """On a closed loop the match wraps around the seam: progress is cumulative (laps),
     and the published s stops at the finish (the course length)."""
-    from itt_planner.course import Course, GeoOrigin
+    from itt_planner.course.geometry import Course, GeoOrigin
 
     u = np.linspace(0.0, 2 * np.pi, 800, endpoint=False)
     x, y = 300.0 * np.cos(u) - 300.0, 200.0 * np.sin(u)  # an ellipse starting at (0, 0)

@@ -8,16 +8,16 @@ import dataclasses
 import numpy as np
 import pytest
 
-from itt_planner.conditions import GRAVITY_MPS2
-from itt_planner.course import Course
-from itt_planner.course_loader import load_course
-from itt_planner.horizon import (
+from itt_planner.model.conditions import GRAVITY_MPS2
+from itt_planner.course.geometry import Course
+from itt_planner.course.loader import load_course
+from itt_planner.ocp.horizon import (
     SUBOPTIMAL_FEASIBLE, HorizonPlanner, HorizonSettings, HorizonSolution,
 )
-from itt_planner.ocp import solve_plan
-from itt_planner.plan import Plan
-from itt_planner.rider import PRESETS, Rider
-from itt_planner.state import RiderState
+from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.plan import Plan
+from itt_planner.model.rider import PRESETS, Rider
+from itt_planner.model.state import RiderState
 from test_ocp import hairpin
 
 COURSE = hairpin(straight_m=600.0)

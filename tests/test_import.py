@@ -16,10 +16,10 @@ from typer.testing import CliRunner
 
 from itt_planner.cli import app
 from itt_planner.errors import RideLogError
-from itt_planner.ride_import import ImportSummary, count_gps_jumps, find_pauses, import_ride
-from itt_planner.ridelog import RideLogReader
-from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.track_files import file_sha256
+from itt_planner.logs.ride_import import ImportSummary, count_gps_jumps, find_pauses, import_ride
+from itt_planner.logs.ridelog import RideLogReader
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.course.track_files import file_sha256
 
 RIDES = ["edge1000_ardennes_2019.fit", "edge810_vector_stjohns_2013.fit",
          "elemnt_shanghai_2019_stopgo.fit", "sauerland_2025.fit", "zwift_bologna_tt_virtual.tcx"]

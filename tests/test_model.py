@@ -8,9 +8,9 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from itt_planner.conditions import Conditions
-from itt_planner.model import PARAMS, ROAD, ModelParams, build_1d, build_3d, steady_speed_mps
-from itt_planner.rider import PRESETS
+from itt_planner.model.conditions import Conditions
+from itt_planner.model.dynamics import PARAMS, ROAD, ModelParams, build_1d, build_3d, steady_speed_mps
+from itt_planner.model.rider import PRESETS
 
 
 def _x3d(v: float, w_n: float) -> np.ndarray:
@@ -85,10 +85,10 @@ def test_parameter_vector_matches_names() -> None:
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from itt_planner.course_builder import build_course  # noqa: E402
-from itt_planner.model import speed_bound_mps  # noqa: E402
-from itt_planner.ocp_guess import initial_guess, speed_guess  # noqa: E402
-from itt_planner.rider import Rider  # noqa: E402
+from itt_planner.course.builder import build_course  # noqa: E402
+from itt_planner.model.dynamics import speed_bound_mps  # noqa: E402
+from itt_planner.ocp.guess import initial_guess, speed_guess  # noqa: E402
+from itt_planner.model.rider import Rider  # noqa: E402
 
 plausible_riders = st.builds(
     Rider, mass_kg=st.floats(50, 100), drag_area_m2=st.floats(0.18, 0.45),

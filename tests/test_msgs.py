@@ -17,9 +17,9 @@ from mcap_ros2._dynamic import generate_dynamic
 import itt_msgs_py
 from itt_msgs_py import convert, topics
 from itt_msgs_py.definitions import SEPARATOR, msg_texts, msgdef
-from itt_planner.advice import Advice, Cue, Diagnostic, Level
-from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.state import RiderState
+from itt_planner.live.advice import Advice, Cue, Diagnostic, Level
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.model.state import RiderState
 
 ROOT = Path(__file__).resolve().parents[1]
 MSG_DIR = ROOT / "ros_ws" / "src" / "itt_msgs" / "msg"

@@ -18,17 +18,17 @@ from typer.testing import CliRunner
 
 from itt_planner.cli import app
 from itt_planner.cli.plan import EXIT_NOT_CONVERGED
-from itt_planner.conditions import GRAVITY_MPS2, Conditions
-from itt_planner.course import Course, GeoOrigin
-from itt_planner.course_loader import load_course
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.course.geometry import Course, GeoOrigin
+from itt_planner.course.loader import load_course
 from itt_planner.errors import RiderError, SolveError
-from itt_planner.model import build_model, steady_speed_mps
-from itt_planner.ocp import (
+from itt_planner.model.dynamics import build_model, steady_speed_mps
+from itt_planner.ocp.course_problem import (
     OcpSettings, Start, compare_riders, longest_stretch, plan_guess, solve_plan,
 )
-from itt_planner.plan import Plan, corner_table, splits
-from itt_planner.plan_cache import load_or_solve
-from itt_planner.rider import PRESETS, Rider
+from itt_planner.ocp.plan import Plan, corner_table, splits
+from itt_planner.ocp.cache import load_or_solve
+from itt_planner.model.rider import PRESETS, Rider
 
 
 def hairpin(straight_m: float = 300.0, radius_m: float = 12.0, width_m: float = 4.0) -> Course:
@@ -203,7 +203,7 @@ def test_plan_cache_is_keyed_by_model_code_and_keeps_only_verified_plans(
     a plan that is not converged and verified is never stored."""
     import dataclasses  # noqa: PLC0415
 
-    from itt_planner import plan_cache  # noqa: PLC0415
+    from itt_planner.ocp import cache as plan_cache  # noqa: PLC0415
 
     c, rider = straight(600.0), PRESETS["paper"]
     key = plan_cache.plan_key(c, rider, Conditions(), OcpSettings(), "1d")

@@ -15,11 +15,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from itt_planner.course_builder import build_course
+from itt_planner.course.builder import build_course
 from itt_planner.errors import IttError
-from itt_planner.ocp import solve_plan
-from itt_planner.rider import Rider
-from itt_planner.solver import PlanStatus
+from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.model.rider import Rider
+from itt_planner.ocp.solver import PlanStatus
 
 riders = st.builds(
     Rider, mass_kg=st.floats(50, 100), drag_area_m2=st.floats(0.18, 0.45),

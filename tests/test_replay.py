@@ -11,19 +11,19 @@ from mcap.reader import make_reader
 from mcap_readers import check_all_readers, rerun_value
 from typer.testing import CliRunner
 
-from itt_planner import replay as replay_mod
-from itt_planner import session as session_mod
+from itt_planner.session import replay as replay_mod
+from itt_planner.session import ride_session as session_mod
 from itt_planner.cli import app
-from itt_planner.conditions import Conditions
-from itt_planner.engine import ON_PLAN, EngineSettings, PacingEngine
-from itt_planner.horizon import HorizonPlanner, HorizonSettings
-from itt_planner.ocp import OcpSettings
-from itt_planner.plan_cache import load_or_solve
-from itt_planner.replay import ReplaySettings, parse_speed, replay
-from itt_planner.ridelog import RawRecord, RideLogReader, RideLogWriter, RideMetadata
-from itt_planner.rider import PRESETS
-from itt_planner.session import RideSession, SessionConfig
-from itt_planner.simulate import hairpin_course, sensor_samples
+from itt_planner.model.conditions import Conditions
+from itt_planner.live.engine import ON_PLAN, EngineSettings, PacingEngine
+from itt_planner.ocp.horizon import HorizonPlanner, HorizonSettings
+from itt_planner.ocp.course_problem import OcpSettings
+from itt_planner.ocp.cache import load_or_solve
+from itt_planner.session.replay import ReplaySettings, parse_speed, replay
+from itt_planner.logs.ridelog import RawRecord, RideLogReader, RideLogWriter, RideMetadata
+from itt_planner.model.rider import PRESETS
+from itt_planner.session.ride_session import RideSession, SessionConfig
+from itt_planner.sim.simulate import hairpin_course, sensor_samples
 
 T0 = 1_779_000_000.0
 REPLAN_S = 10.0  # few solves keep the tests short; the benchmark replans at 1 Hz
@@ -174,8 +174,8 @@ def test_damaged_input_replays_everything_before_the_damage(setup: dict,
 def test_rerun_recording(setup: dict, tmp_path: Path) -> None:
     from rerun.chunk import RrdReader
 
-    from itt_planner.rerun_log import RideRecorder
-    from itt_planner.rerun_sink import RerunSink, open_recording
+    from itt_planner.view.rerun_log import RideRecorder
+    from itt_planner.view.rerun_sink import RerunSink, open_recording
 
     rrd = tmp_path / "review.rrd"
     rec = open_recording(RerunSink("file", str(rrd)))

@@ -18,16 +18,16 @@ from PIL import Image
 from synthetic_ride import RIDER, make_course, make_plan
 from typer.testing import CliRunner
 
-from itt_planner.advice import Cue
+from itt_planner.live.advice import Cue
 from itt_planner.cli import app
-from itt_planner.course import Course
+from itt_planner.course.geometry import Course
 from itt_planner.errors import IttError
-from itt_planner.plan import Plan
-from itt_planner.report import render_html, rider_from_plan, summary, write_report
-from itt_planner.replay import replay_ride
-from itt_planner.session import SessionConfig
-from itt_planner.ride_report import belief_events, load_ride_trace
-from itt_planner.ridelog import read_ride_log
+from itt_planner.ocp.plan import Plan
+from itt_planner.view.report import render_html, rider_from_plan, summary, write_report
+from itt_planner.session.replay import replay_ride
+from itt_planner.session.ride_session import SessionConfig
+from itt_planner.view.ride_report import belief_events, load_ride_trace
+from itt_planner.logs.ridelog import read_ride_log
 
 DEMO_BAG = Path(__file__).parents[1] / "bags" / "typical_verona-like.mcap"
 
@@ -114,7 +114,7 @@ def test_cli_report_errors(plan: Plan, tmp_path: Path) -> None:
 
 def test_demo_course_named_in_plan_header(tmp_path: Path) -> None:
     """A plan on the verona-like demo: the course is found from the plan's header."""
-    from itt_planner.course_loader import load_course  # noqa: PLC0415
+    from itt_planner.course.loader import load_course  # noqa: PLC0415
 
     demo = load_course("verona-like")
     plan = make_plan(demo, ds_m=10.0)

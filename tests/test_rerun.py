@@ -12,12 +12,12 @@ import rerun as rr
 from rerun.chunk import ChunkStore, RrdReader
 from synthetic_ride import REFIT_CP_W, RIDER, T0_S, make_course, make_plan, make_ride
 
-from itt_planner.advice import Advice, Diagnostic
+from itt_planner.live.advice import Advice, Diagnostic
 from itt_planner.errors import IttError
-from itt_planner.rerun_log import MAX_HORIZON_POINTS, MPS_TO_KMH, TRACK_SEGMENT, RideRecorder
-from itt_planner.rerun_sink import RerunSink, open_recording
-from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.state import RiderState
+from itt_planner.view.rerun_log import MAX_HORIZON_POINTS, MPS_TO_KMH, TRACK_SEGMENT, RideRecorder
+from itt_planner.view.rerun_sink import RerunSink, open_recording
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.model.state import RiderState
 
 
 def record(recorder: RideRecorder, events: list) -> None:

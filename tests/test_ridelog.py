@@ -17,10 +17,10 @@ from test_msgs import make_advice
 from itt_msgs_py import topics
 from itt_msgs_py.convert import stamp_ns
 from itt_msgs_py.definitions import msgdef
-from itt_planner.advice import Advice, Diagnostic, Level
+from itt_planner.live.advice import Advice, Diagnostic, Level
 from itt_planner.errors import RideLogError
-from itt_planner.ridelog import RawRecord, RideLogReader, RideLogWriter, RideMetadata, read_ride_log
-from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.logs.ridelog import RawRecord, RideLogReader, RideLogWriter, RideMetadata, read_ride_log
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 
 T0 = 1_700_000_000.0
 STEPS = 300  # ~1 MB of messages: several 256 KiB chunks
@@ -193,7 +193,7 @@ def test_crash_leaves_a_readable_file(tmp_path: Path) -> None:
     path = tmp_path / "crash.mcap"
     script = (
         "import os, sys; sys.path.insert(0, sys.argv[2]); from test_ridelog import write_log\n"
-        "from itt_planner import ridelog\n"
+        "from itt_planner.logs import ridelog as ridelog\n"
         "ridelog.RideLogWriter.close = lambda self: os._exit(3)  # die before the summary\n"
         "write_log(__import__('pathlib').Path(sys.argv[1]))\n")
     proc = subprocess.run([sys.executable, "-c", script, str(path), str(Path(__file__).parent)],

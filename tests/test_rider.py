@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from itt_planner.errors import RiderError
-from itt_planner.rider import PRESETS, Rider, load_rider
+from itt_planner.model.rider import PRESETS, Rider, load_rider
 
 
 def test_presets_are_the_paper_rider_and_three_virtual_riders() -> None:
@@ -79,8 +79,8 @@ def test_invalid_cornering_and_drivetrain_fields(tmp_path: Path, text: str, fiel
 
 
 def test_lateral_limit_is_the_lower_of_grip_and_rider() -> None:
-    from itt_planner.conditions import Conditions  # noqa: PLC0415
-    from itt_planner.model import PARAMS, ModelParams, lateral_limit_mps2  # noqa: PLC0415
+    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
+    from itt_planner.model.dynamics import PARAMS, ModelParams, lateral_limit_mps2  # noqa: PLC0415
 
     assert lateral_limit_mps2(Rider(), Conditions()) == pytest.approx(9.81)
     timid = Rider(max_lateral_accel_mps2=4.0)

@@ -27,8 +27,8 @@ from test_msgs import make_advice
 
 from itt_msgs_py import convert, deserialize, serialize, typestore
 from itt_msgs_py.dds_env import profile_path
-from itt_planner.advice import Diagnostic, Level
-from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.live.advice import Diagnostic, Level
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 
 TOPIC = "/itt_test/fix"
 # Plain rclpy on both sides: nothing of the project in these processes.

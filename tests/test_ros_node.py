@@ -29,10 +29,10 @@ from sensor_msgs.msg import NavSatFix  # noqa: E402
 
 from itt_msgs_py import serialize, topics  # noqa: E402
 from itt_msgs_py.convert import msg_to_advice, msg_to_diagnostics, sample_to_msg  # noqa: E402
-from itt_planner.replay import replay_ride  # noqa: E402
-from itt_planner.ridelog import read_ride_log  # noqa: E402
-from itt_planner.samples import GpsFix  # noqa: E402
-from itt_planner.session import SessionConfig  # noqa: E402
+from itt_planner.session.replay import replay_ride  # noqa: E402
+from itt_planner.logs.ridelog import read_ride_log  # noqa: E402
+from itt_planner.live.samples import GpsFix  # noqa: E402
+from itt_planner.session.ride_session import SessionConfig  # noqa: E402
 from itt_planner_ros.ros_types import message_class, qos_profile  # noqa: E402
 
 HAIRPIN_LENGTH_M = 2738
@@ -230,7 +230,7 @@ def test_plain_rclpy_peers_feed_the_node_and_read_its_path(ride: Ride, tmp_path:
                                                            ros_env: dict[str, str]) -> None:
     """A plain rclpy script publishes sensor_msgs/NavSatFix (and speed, power) that reach
     the node, and receives /itt/target_line as nav_msgs/msg/Path."""
-    from itt_planner.course_loader import load_course
+    from itt_planner.course.loader import load_course
 
     course = load_course(str(ride.course))
     x, y, z = course.enu_at(50.0, 0.0)

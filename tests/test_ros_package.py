@@ -157,7 +157,7 @@ def test_installed_node_runs_on_real_rclpy_with_ros_args(
 
 def _node_parameters() -> dict[str, object]:
     """Every parameter the node declares with its default (session's and node's own)."""
-    from itt_planner.session import SessionConfig
+    from itt_planner.session.ride_session import SessionConfig
     from itt_planner_ros.pacing_node import NODE_PARAMS
 
     session = {f.name: f.default for f in fields(SessionConfig) if f.name != "namespace"}

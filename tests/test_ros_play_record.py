@@ -31,7 +31,7 @@ from rosbags.rosbag2.metadata import parse_qos  # noqa: E402
 
 from itt_msgs_py import topics  # noqa: E402
 from itt_msgs_py.qos import OFFERED_QOS_KEY, offered_qos_yaml  # noqa: E402
-from itt_planner.ridelog import RideLogReader, message_count  # noqa: E402
+from itt_planner.logs.ridelog import RideLogReader, message_count  # noqa: E402
 from itt_planner_ros.player import PlaySettings, play  # noqa: E402
 from itt_planner_ros.ros_types import (  # noqa: E402
     edge_node,

@@ -17,15 +17,15 @@ import yaml
 from typer.testing import CliRunner
 
 from itt_planner.cli import app
-from itt_planner.conditions import Conditions
-from itt_planner.course_replan import CourseReplanSettings
-from itt_planner.engine import EngineSettings
+from itt_planner.model.conditions import Conditions
+from itt_planner.live.course_replan import CourseReplanSettings
+from itt_planner.live.engine import EngineSettings
 from itt_planner.errors import RiderError
-from itt_planner.horizon import HorizonPlanner, HorizonSettings
-from itt_planner.ocp import OcpSettings
-from itt_planner.plan_cache import load_or_solve
-from itt_planner.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.simulate import (
+from itt_planner.ocp.horizon import HorizonPlanner, HorizonSettings
+from itt_planner.ocp.course_problem import OcpSettings
+from itt_planner.ocp.cache import load_or_solve
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.sim.simulate import (
     Policy, RiderBehaviour, SensorSettings, Sensors, compare_policies,
     planning_conditions, simulate_ride,
 )
@@ -203,7 +203,7 @@ def test_verona_like_nominal(request):
     +0.49 / +0.44 %). With the default 0.8 s wall cap the horizon's solves are
     load-dependent, so asserted is what holds with room (W' >= 0, within 3 %, far ahead
     of even pacing). See bench/RESULTS.md."""
-    from itt_planner.course_loader import load_course
+    from itt_planner.course.loader import load_course
 
     course = load_course("verona-like")
     plan = load_or_solve(course, RIDER, PLAN_CONDITIONS, OcpSettings(), "3d",
@@ -222,7 +222,7 @@ def test_verona_like_hot_start(request):
     dry on the climb at km 7-8. Measured 2026-11-30 (evening), seeds 0 / 1: +1.68 /
     +2.16 s (1270.63 / 1269.05 s vs 1272.32 / 1271.20 s). Horizon wall cap 30 s, so the
     result does not depend on the machine's load."""
-    from itt_planner.course_loader import load_course
+    from itt_planner.course.loader import load_course
 
     course = load_course("verona-like")
     plan = load_or_solve(course, RIDER, PLAN_CONDITIONS, OcpSettings(), "3d",

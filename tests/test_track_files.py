@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from itt_planner.errors import CourseError
-from itt_planner.track_files import file_sha256, read_recording
+from itt_planner.course.track_files import file_sha256, read_recording
 
 
 def test_fit_ride_has_positions_power_and_stamps(data_file: Callable[[str], Path]) -> None:

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from itt_planner.calibration import CalibrationError, CalibrationOptions, calibrate
 from itt_planner.calibration.validate import validate_ride
 from itt_planner.cli import app
-from itt_planner.course_loader import load_course
+from itt_planner.course.loader import load_course
 
 ST_JOHNS = "rides/edge810_vector_stjohns_2013.fit"
 SAUERLAND = "rides/sauerland_2025.fit"

@@ -8,15 +8,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from itt_planner.conditions import Conditions
-from itt_planner.course_builder import build_course
-from itt_planner.model import ModelParams, build_1d
-from itt_planner.ocp import OcpSettings, solve_plan
-from itt_planner.plan import Plan
-from itt_planner.rider import Rider
-from itt_planner.solver import PlanStatus
-from itt_planner.transcription import transcribe
-from itt_planner.verify import verify_plan
+from itt_planner.model.conditions import Conditions
+from itt_planner.course.builder import build_course
+from itt_planner.model.dynamics import ModelParams, build_1d
+from itt_planner.ocp.course_problem import OcpSettings, solve_plan
+from itt_planner.ocp.plan import Plan
+from itt_planner.model.rider import Rider
+from itt_planner.ocp.solver import PlanStatus
+from itt_planner.ocp.transcription import transcribe
+from itt_planner.ocp.verify import verify_plan
 
 #: The rider of issue 18.
 RIDER = Rider(name="issue18", mass_kg=86.0, drag_area_m2=0.273, critical_power_w=290.0)
@@ -98,7 +98,7 @@ def test_rest_and_sprint_is_flagged_and_infeasible(hill_plan: Plan) -> None:
 
 def test_speed_bound_keeps_plans_physical(hill_plan: Plan) -> None:
     """v_max from physics: far above any speed of the plan, far below the artefact."""
-    from itt_planner.model import speed_bound_mps  # noqa: PLC0415
+    from itt_planner.model.dynamics import speed_bound_mps  # noqa: PLC0415
 
     bound = speed_bound_mps(RIDER, Conditions(), float(np.tan(HILL.beta_rad.min())))
     assert hill_plan.v_mps.max() < 0.8 * bound < 50.0
@@ -117,8 +117,8 @@ def test_3d_plan_lateral_check() -> None:
     assert plan.converged, plan.meta["attempts"]
     ver = plan.meta["verification"]
     assert ver["verified"] and ver["max_roll_defect_rad"] < 0.02
-    from itt_planner.ocp import _model  # noqa: PLC0415
-    from itt_planner.wprime import WPrimeModel  # noqa: PLC0415
+    from itt_planner.ocp.course_problem import _model  # noqa: PLC0415
+    from itt_planner.model.wprime import WPrimeModel  # noqa: PLC0415
 
     bad = dataclasses.replace(plan, u_delta=plan.u_delta + 2.0)
     again = verify_plan(bad, course, RIDER, model=_model("3d", WPrimeModel.SKIBA))

@@ -36,9 +36,9 @@ from PIL import Image, ImageOps
 from synthetic_ride import RIDER, make_plan, make_ride
 from test_rerun import record
 
-from itt_planner.course_loader import load_course
-from itt_planner.rerun_log import RideRecorder
-from itt_planner.rerun_sink import RerunSink, open_recording
+from itt_planner.course.loader import load_course
+from itt_planner.view.rerun_log import RideRecorder
+from itt_planner.view.rerun_sink import RerunSink, open_recording
 
 pytestmark = pytest.mark.screenshot
 

@@ -14,7 +14,7 @@ import numpy as np
 import pymap3d
 
 from itt_planner.calibration.ride_data import RideSeries
-from itt_planner.conditions import GRAVITY_MPS2
+from itt_planner.model.conditions import GRAVITY_MPS2
 
 
 @dataclass(frozen=True)

@@ -20,10 +20,10 @@ from itt_planner.calibration.aero import AeroFit, AeroSettings, fit_aero
 from itt_planner.calibration.cornering import CorneringFit, fit_cornering
 from itt_planner.calibration.power_curve import CpFit, fit_cp, mmp_curve
 from itt_planner.calibration.ride_data import CalibrationError, RideSeries, prepare_ride
-from itt_planner.course import Course
+from itt_planner.course.geometry import Course
 from itt_planner.errors import CourseError
-from itt_planner.rider import PRESETS, Rider
-from itt_planner.track_files import Recording, read_recording
+from itt_planner.model.rider import PRESETS, Rider
+from itt_planner.course.track_files import Recording, read_recording
 
 
 @dataclass(frozen=True)
@@ -106,7 +106,7 @@ def load_rides(paths: list[str | Path] | list[Recording], temperature_c: float |
 
 def ride_courses(rides: list[RideSeries], course: str | None) -> list[Course]:
     """The course of each ride: the given one, or the ride's own track fitted."""
-    from itt_planner.course_loader import load_course  # noqa: PLC0415  (SciPy fit, lazy)
+    from itt_planner.course.loader import load_course  # noqa: PLC0415  (SciPy fit, lazy)
 
     if course is not None:
         return [load_course(course)] * len(rides)

@@ -20,7 +20,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from itt_planner.calibration.ride_data import CalibrationError
-from itt_planner.report import png_bytes
+from itt_planner.view.report import png_bytes
 
 if TYPE_CHECKING:
     from itt_planner.calibration.calibrate import CalibrationResult

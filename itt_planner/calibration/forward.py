@@ -22,11 +22,11 @@ import numpy as np
 
 from itt_planner.calibration.ride_data import CalibrationError
 from itt_planner.calibration.ride_on_course import RideOnCourse
-from itt_planner.conditions import GRAVITY_MPS2, Conditions
-from itt_planner.course import Course, detect_corners
-from itt_planner.model import ModelParams, build_1d, rk4_step
-from itt_planner.plan import PLAN_ARRAYS, Plan
-from itt_planner.rider import Rider
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.course.geometry import Course, detect_corners
+from itt_planner.model.dynamics import ModelParams, build_1d, rk4_step
+from itt_planner.ocp.plan import PLAN_ARRAYS, Plan
+from itt_planner.model.rider import Rider
 
 #: The virtual rider's advised speed in the replay: high, so it brakes only for grip.
 _NO_SPEED_LIMIT_MPS = 30.0
@@ -108,7 +108,7 @@ def forward_3d(course: Course, rider: Rider, ride: RideOnCourse,
         CalibrationError: the virtual rider stalled or fell (no finish): at walking pace
             its lean loop is unstable, and a measured stop (a junction on a climb) stops it.
     """
-    from itt_planner.simulate import RiderBehaviour, simulate_ride  # noqa: PLC0415
+    from itt_planner.sim.simulate import RiderBehaviour, simulate_ride  # noqa: PLC0415
 
     behaviour = RiderBehaviour(power_noise=0.0)
     rolling = np.flatnonzero(ride.v_mps >= _START_MIN_MPS)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from itt_planner.course import Course
+from itt_planner.course.geometry import Course
 
 #: Fastest plausible progress along the course between fixes (m/s) and slack (m).
 _V_MAX_MPS = 30.0

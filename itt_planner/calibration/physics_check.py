@@ -16,7 +16,7 @@ import numpy as np
 
 from itt_planner.calibration.forward import ForwardRun
 from itt_planner.calibration.ride_on_course import RideOnCourse
-from itt_planner.course import Course
+from itt_planner.course.geometry import Course
 
 #: Band of the "share within" figure (km/h).
 BAND_KMH = 2.0

@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from itt_planner.calibration.ride_on_course import RideOnCourse
-from itt_planner.course import Course
-from itt_planner.plan import Plan
+from itt_planner.course.geometry import Course
+from itt_planner.ocp.plan import Plan
 
 #: Grade above which a stretch is a climb (below minus it, a descent), over 200 m.
 SECTION_GRADE = 0.02

@@ -16,8 +16,8 @@ import numpy as np
 import pymap3d
 
 from itt_planner.errors import IttError
-from itt_planner.ride_import import EARTH_RADIUS_M, PAUSE_MIN_S, POWER_SPIKE_W
-from itt_planner.track_files import Recording
+from itt_planner.logs.ride_import import EARTH_RADIUS_M, PAUSE_MIN_S, POWER_SPIKE_W
+from itt_planner.course.track_files import Recording
 
 #: Standard atmosphere (ICAO): sea-level pressure (Pa), lapse-rate exponent, scale.
 _P0_PA = 101_325.0

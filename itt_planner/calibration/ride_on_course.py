@@ -14,7 +14,7 @@ import numpy as np
 
 from itt_planner.calibration.matching import course_progress
 from itt_planner.calibration.ride_data import MOVING_MPS, CalibrationError, RideSeries, smooth
-from itt_planner.course import Course
+from itt_planner.course.geometry import Course
 
 #: Window of the smoothed ride speed the models are compared with (samples, 1 Hz).
 SMOOTH_SAMPLES = 5

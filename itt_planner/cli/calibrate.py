@@ -117,8 +117,8 @@ def validate_cli(
     """Replay a ride's power through the models and compare the plan with the ride."""
     from itt_planner.calibration import CalibrationError, CalibrationOptions  # noqa: PLC0415
     from itt_planner.calibration.validate import holdout, validate_ride  # noqa: PLC0415
-    from itt_planner.course_loader import load_course  # noqa: PLC0415
-    from itt_planner.rider import load_rider  # noqa: PLC0415
+    from itt_planner.course.loader import load_course  # noqa: PLC0415
+    from itt_planner.model.rider import load_rider  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         courses = [load_course(course or str(r)) for r in rides]

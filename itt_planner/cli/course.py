@@ -29,11 +29,11 @@ _WIDTH = typer.Option(None, "--road-width", help="Full road width of a GPS cours
 def _options(start: str | None, finish: str | None, route: Path | None, elevation: str,
              tolerance: float, width: float | None) -> Any:
     """`CourseOptions` from the CLI flags, or None when all are at their defaults."""
-    from itt_planner.course import GPS_ROAD_WIDTH_M  # noqa: PLC0415
-    from itt_planner.course_elevation import ElevationOptions  # noqa: PLC0415
-    from itt_planner.course_fit import CourseOptions  # noqa: PLC0415
-    from itt_planner.course_trim import TrimOptions, parse_mark  # noqa: PLC0415
-    from itt_planner.track_files import read_recording  # noqa: PLC0415
+    from itt_planner.course.geometry import GPS_ROAD_WIDTH_M  # noqa: PLC0415
+    from itt_planner.course.elevation import ElevationOptions  # noqa: PLC0415
+    from itt_planner.course.fit import CourseOptions  # noqa: PLC0415
+    from itt_planner.course.trim import TrimOptions, parse_mark  # noqa: PLC0415
+    from itt_planner.course.track_files import read_recording  # noqa: PLC0415
 
     if (start, finish, route, elevation, tolerance, width) == (None, None, None, "auto", 5.0,
                                                                None):
@@ -83,7 +83,7 @@ def info_cli(
     as_json: bool = JSON_OPTION,
 ) -> None:
     """Print length, climbing, grades, trimming, altitude checks, width and the corners."""
-    from itt_planner.course_loader import load_course  # noqa: PLC0415
+    from itt_planner.course.loader import load_course  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         options = _options(start, finish, route, elevation, tolerance, width)
@@ -99,7 +99,7 @@ def save_cli(
     as_json: bool = JSON_OPTION,
 ) -> None:
     """Build a course and save it in the project's own format (with how it was built)."""
-    from itt_planner.course_loader import load_course  # noqa: PLC0415
+    from itt_planner.course.loader import load_course  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         options = _options(start, finish, route, elevation, tolerance, width)

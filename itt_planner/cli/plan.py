@@ -28,7 +28,7 @@ def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
     """The figures `plan --json` prints (edge units only in the *_kmh / *_deg fields)."""
     import numpy as np  # noqa: PLC0415
 
-    from itt_planner.plan import corner_table, splits  # noqa: PLC0415
+    from itt_planner.ocp.plan import corner_table, splits  # noqa: PLC0415
 
     dt = np.diff(plan.t_s)
     mean_power = float(np.sum(plan.power_w[:-1] * dt) / max(float(np.sum(dt)), 1e-9))
@@ -99,10 +99,10 @@ def plan_cli(
     cap, found the problem infeasible, or the plan failed verification (the figures are
     printed with that status), unless --allow-unconverged.
     """
-    from itt_planner.conditions import Conditions  # noqa: PLC0415
-    from itt_planner.course_loader import load_course  # noqa: PLC0415
-    from itt_planner.ocp import OcpSettings, solve_plan  # noqa: PLC0415
-    from itt_planner.rider import load_rider  # noqa: PLC0415
+    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
+    from itt_planner.course.loader import load_course  # noqa: PLC0415
+    from itt_planner.ocp.course_problem import OcpSettings, solve_plan  # noqa: PLC0415
+    from itt_planner.model.rider import load_rider  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         built = load_course(course)
@@ -133,8 +133,8 @@ def compare_riders_cli(
     as_json: bool = JSON_OPTION,
 ) -> None:
     """The three virtual riders x both models: finish, longest descent, sharpest corner."""
-    from itt_planner.course_loader import load_course  # noqa: PLC0415
-    from itt_planner.ocp import compare_riders  # noqa: PLC0415
+    from itt_planner.course.loader import load_course  # noqa: PLC0415
+    from itt_planner.ocp.course_problem import compare_riders  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         rows = compare_riders(load_course(course))

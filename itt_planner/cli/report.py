@@ -42,7 +42,7 @@ def report_cli(
     """Render power, speed and elevation against distance and corner close-ups; for a ride
     log, the actual ride over the plan (power, speed, W') and a summary of the advice."""
     with errors_to_exit(as_json):
-        from itt_planner.ride_report import is_ride_log  # noqa: PLC0415
+        from itt_planner.view.ride_report import is_ride_log  # noqa: PLC0415
 
         if is_ride_log(source):
             result = make_ride_report(source, output, course, rider, cache_dir)
@@ -57,10 +57,10 @@ def make_report(plan_path: Path, output: Path, course_spec: str | None) -> dict[
     Raises:
         IttError: unreadable plan or course, no course given or named, unwritable output.
     """
-    from itt_planner.course_loader import load_course  # noqa: PLC0415
+    from itt_planner.course.loader import load_course  # noqa: PLC0415
     from itt_planner.errors import IttError  # noqa: PLC0415
-    from itt_planner.plan import Plan  # noqa: PLC0415
-    from itt_planner.report import rider_from_plan, summary, write_report  # noqa: PLC0415
+    from itt_planner.ocp.plan import Plan  # noqa: PLC0415
+    from itt_planner.view.report import rider_from_plan, summary, write_report  # noqa: PLC0415
 
     plan = Plan.load(plan_path)
     spec = course_spec or plan.meta.get("course")
@@ -79,8 +79,8 @@ def make_ride_report(log_path: Path, output: Path, course_spec: str | None,
     Raises:
         IttError: not a replay output, unreadable log, course or rider, unwritable output.
     """
-    from itt_planner.report import ride_summary, write_report  # noqa: PLC0415
-    from itt_planner.ride_report import load_ride_trace, ride_setup  # noqa: PLC0415
+    from itt_planner.view.report import ride_summary, write_report  # noqa: PLC0415
+    from itt_planner.view.ride_report import load_ride_trace, ride_setup  # noqa: PLC0415
 
     trace = load_ride_trace(log_path)
     course, rider, plan = ride_setup(trace, course_spec, rider_spec, cache_dir)

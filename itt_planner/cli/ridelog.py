@@ -31,7 +31,7 @@ def import_cli(
     as_json: bool = JSON_OPTION,
 ) -> None:
     """Write a recorded ride as a ROS 2 MCAP log (GPS, speed, power at the recorded times)."""
-    from itt_planner.ride_import import import_ride  # noqa: PLC0415
+    from itt_planner.logs.ride_import import import_ride  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         emit(import_ride(ride, output, rider=rider, namespace=namespace).as_dict(), as_json,
@@ -75,8 +75,8 @@ def replay_cli(
 ) -> None:
     """Replay a ride log through the pacing engine; write advice to MCAP (and Rerun)."""
     from itt_planner.errors import IttError  # noqa: PLC0415
-    from itt_planner.replay import ReplaySettings, parse_speed, replay_ride  # noqa: PLC0415
-    from itt_planner.session import SessionConfig  # noqa: PLC0415
+    from itt_planner.session.replay import ReplaySettings, parse_speed, replay_ride  # noqa: PLC0415
+    from itt_planner.session.ride_session import SessionConfig  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         try:

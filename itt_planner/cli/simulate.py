@@ -45,13 +45,13 @@ def simulate_cli(
     """Ride a course in closed loop (3D model in time, noisy sensors, the pacing engine)
     and compare with following the full-course plan blindly and with even CP pacing.
     Plans are solved for the lateral grip the virtual rider uses."""
-    from itt_planner.conditions import Conditions  # noqa: PLC0415
-    from itt_planner.course_loader import load_course  # noqa: PLC0415
-    from itt_planner.engine import EngineSettings  # noqa: PLC0415
-    from itt_planner.ocp import OcpSettings  # noqa: PLC0415
-    from itt_planner.plan_cache import load_or_solve  # noqa: PLC0415
-    from itt_planner.rider import load_rider  # noqa: PLC0415
-    from itt_planner.simulate import compare_policies, planning_conditions  # noqa: PLC0415
+    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
+    from itt_planner.course.loader import load_course  # noqa: PLC0415
+    from itt_planner.live.engine import EngineSettings  # noqa: PLC0415
+    from itt_planner.ocp.course_problem import OcpSettings  # noqa: PLC0415
+    from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
+    from itt_planner.model.rider import load_rider  # noqa: PLC0415
+    from itt_planner.sim.simulate import compare_policies, planning_conditions  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         built = load_course(course)

@@ -26,7 +26,7 @@ from typing import Any
 from tqdm import tqdm
 
 from itt_planner.errors import IttError
-from itt_planner.track_files import SUFFIXES
+from itt_planner.course.track_files import SUFFIXES
 
 log = logging.getLogger(__name__)
 

@@ -13,7 +13,7 @@ and listed with their reasons):
 
 Differences are taken case by case (the same course, rider, wind, grip, W' model and
 equipment apart from the axis compared) and summarised by the median over the other
-axes, with the range as whiskers. HTML and PNG embedding as in `itt_planner.report`.
+axes, with the range as whiskers. HTML and PNG embedding as in `itt_planner.view.report`.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from itt_planner.errors import IttError
-from itt_planner.report import DPI, MPS_TO_KMH, table_cell, png_bytes
+from itt_planner.view.report import DPI, MPS_TO_KMH, table_cell, png_bytes
 from itt_planner.sweep.solve import CONVERGED
 from itt_planner.sweep.store import ResultStore
 

@@ -19,10 +19,10 @@ import socket
 import time
 from typing import Any
 
-from itt_planner.course import Course
-from itt_planner.ocp import solve_plan
-from itt_planner.plan import splits
-from itt_planner.report import average_power_w
+from itt_planner.course.geometry import Course
+from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.plan import splits
+from itt_planner.view.report import average_power_w
 from itt_planner.sweep.cases import Case
 
 log = logging.getLogger(__name__)

@@ -37,9 +37,9 @@ from typing import Any
 import yaml
 
 from itt_planner.errors import IttError
-from itt_planner.ocp import OcpSettings
-from itt_planner.rider import PRESETS, Rider
-from itt_planner.wprime import WPrimeModel
+from itt_planner.ocp.course_problem import OcpSettings
+from itt_planner.model.rider import PRESETS, Rider
+from itt_planner.model.wprime import WPrimeModel
 
 MODELS = ("1d", "3d")
 _TOP_KEYS = {"name", "courses", "riders", "axes", "cases", "solver", "split_every_m"}
@@ -183,7 +183,7 @@ def _strings(raw: Mapping[str, Any], key: str) -> list[str]:
 
 def _source(value: str, base_dir: Path, field: str, keep: tuple[str, ...]) -> str:
     """A preset/demo name as is; a file relative to the spec made absolute."""
-    from itt_planner.course_loader import DEMO_COURSES  # noqa: PLC0415
+    from itt_planner.course.loader import DEMO_COURSES  # noqa: PLC0415
 
     if value in keep or value in DEMO_COURSES:
         return value

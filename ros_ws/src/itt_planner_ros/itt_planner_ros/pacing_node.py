@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The pacing node: ROS 2 topics in and out of an `itt_planner.session.RideSession`.
+"""The pacing node: ROS 2 topics in and out of an `itt_planner.session.ride_session.RideSession`.
 
 Only ROS conversion lives here. Subscriptions take `gps/fix`, `speed` and `power` as CDR
 bytes and decode them with `itt_msgs_py` (so a malformed payload is counted, not fatal);
@@ -35,7 +35,7 @@ from itt_msgs_py import deserialize, serialize, topics
 from itt_msgs_py.convert import (advice_to_msg, diagnostics_to_msg, msg_to_gps_fix,
                                  msg_to_power_reading, msg_to_wheel_speed,
                                  target_line_msg, target_power_msg)
-from itt_planner.session import RideSession, SessionConfig
+from itt_planner.session.ride_session import RideSession, SessionConfig
 from itt_planner_ros.ros_types import message_class, qos_profile
 import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup

@@ -45,7 +45,7 @@ from rosgraph_msgs.msg import Clock
 from itt_msgs_py import DEFAULT_NAMESPACE, topics
 from itt_msgs_py.qos import OFFERED_QOS_KEY
 from itt_planner.errors import RideLogError
-from itt_planner.ridelog import MESSAGE_ENCODING, RideLogReader
+from itt_planner.logs.ridelog import MESSAGE_ENCODING, RideLogReader
 from itt_planner_ros.ros_types import (
     DEFAULT_QOS,
     edge_node,

@@ -48,7 +48,7 @@ from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 
 from itt_msgs_py import msgdef, typestore
-from itt_planner.ridelog import MESSAGE_ENCODING, RawRecord, RideLogWriter, SCHEMA_ENCODING
+from itt_planner.logs.ridelog import MESSAGE_ENCODING, RawRecord, RideLogWriter, SCHEMA_ENCODING
 from itt_planner_ros.ros_types import (
     edge_node,
     message_class,

@@ -1,0 +1,183 @@
+"""Re-solving the rest of the course from the rider's state, beside the live loop.
+
+When the rider has left the plan (W' far off the plan's after a hot start, or a CP
+refit after the rider ran dry), the receding horizon replans every second, but with
+its reduced steady-lean model over 1 km. Following such advice for the rest of a race
+cost more than the pacing it corrected: after a CP refit the horizon-led ride on
+verona-like lost 1.5-3.4 s per km on the technical descent against the old plan
+followed blindly, 15-16 s in all (bench/RESULTS.md). So the engine also asks for a new
+plan: the full-course OCP (`ocp.solve_plan`: roll dynamics, the whole remaining course)
+from the rider's state, with the W' the rider has and the CP in use. Once adopted it is
+THE plan: the advice while the rider keeps to it, the horizon's terminal treatment
+otherwise.
+
+The solve takes seconds (the rest of verona-like: 8-31 s measured), so
+`CourseReplanner` runs it in a worker process while the inputs and the horizon replans
+go on (why a process, not a thread: `CourseReplanner._solve_in_worker`). A live engine takes the
+result at its first update after the solve is done. When it is taken up must not depend
+on the wall clock in a deterministic replay, nor in a simulation that runs many times
+faster than real time: a deterministic engine adopts it `delay_s` of STAMP time after
+the request (about a live solve's time), waiting for the worker then if it is late.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import pickle
+import signal
+import subprocess
+import sys
+import threading
+import time
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from itt_planner.model.conditions import Conditions
+from itt_planner.course.geometry import Course
+from itt_planner.errors import SolveError
+from itt_planner.ocp.course_problem import OcpSettings, Start, solve_plan
+from itt_planner.ocp.plan import Plan
+from itt_planner.model.rider import Rider
+from itt_planner.model.state import RiderState
+
+if TYPE_CHECKING:
+    from itt_planner.ocp.horizon import HorizonPlanner
+
+
+@dataclass(frozen=True)
+class CourseReplanSettings:
+    """When the engine re-solves the rest of the course.
+
+    Attributes:
+        period_s: stamp time between two requests at least (0 disables re-solving).
+        delay_s: stamp time from a request to adopting its result in a deterministic
+            engine (module docstring): about what a solve takes live (the rest of
+            verona-like: 8-14 s measured from 2 km on, 31 s from the start).
+        min_remaining_m: closer to the finish than this the horizon covers the rest
+            (the default horizon's length).
+        ocp: settings of the solve (the full-course plan's, with a shorter CPU cap).
+    """
+
+    period_s: float = 30.0
+    delay_s: float = 15.0
+    min_remaining_m: float = 1000.0
+    # A re-solve still running after two periods is stale: 60 s of CPU at most.
+    ocp: OcpSettings = field(default_factory=lambda: OcpSettings(max_cpu_time_s=60.0))
+
+
+def start_from(planner: HorizonPlanner, state: RiderState, s_m: float) -> Start:
+    """The OCP start at `s_m`: the horizon model's initial state from `state` (clipped so
+    the NLP is feasible: `HorizonPlanner.initial_state`) and the lean of the planner's
+    plan there (the estimate has none; the rider is near the plan's line)."""
+    x0 = planner.initial_state(state, s_m)
+    plan = planner.plan
+    return Start(s_m=s_m, state={**dict(zip(planner.state_names, map(float, x0), strict=True)),
+                                 "phi": float(plan.at("phi_rad", s_m)),
+                                 "phi_dot": float(plan.at("phi_dot_radps", s_m))})
+
+
+class CourseReplanner:
+    """One re-solve of the rest of the course at a time, in a worker process.
+
+    Args:
+        course, conditions: the road and what the planner assumes on it.
+        settings: request period and solve settings.
+        deterministic: adopt a result at a fixed stamp delay (module docstring).
+    """
+
+    def __init__(self, course: Course, conditions: Conditions, settings: CourseReplanSettings,
+                 deterministic: bool) -> None:
+        self.course, self.conditions, self.settings = course, conditions, settings
+        self.deterministic = deterministic
+        # One thread that waits on the worker process (it runs no solver itself).
+        self._waiter = ThreadPoolExecutor(max_workers=1, thread_name_prefix="course_replan")
+        self._worker: subprocess.Popen[bytes] | None = None
+        self._pending: tuple[float, Future[Plan]] | None = None
+        self._last_request_s = -math.inf
+
+    def request(self, stamp_s: float, rider: Rider, guess: Plan, start: Start) -> bool:
+        """Start a re-solve from `start` for `rider` unless one is pending, the last was
+        asked for less than `period_s` ago, or the finish is near. Returns whether one
+        was started."""
+        st = self.settings
+        if (st.period_s <= 0 or self._pending is not None
+                or stamp_s - self._last_request_s < st.period_s
+                or self.course.length_m - start.s_m < st.min_remaining_m):
+            return False
+        self._last_request_s = stamp_s
+        job = (self.course, rider, self.conditions, st.ocp, guess, start)
+        self._pending = (stamp_s, self._waiter.submit(self._solve_in_worker, job))
+        return True
+
+    def take(self, stamp_s: float) -> Plan | None:
+        """The finished re-solve, once it is due (module docstring), else None.
+
+        Raises:
+            Exception: whatever the solve raised; `SolveError` (status "worker_failed")
+                if the worker process died (the caller logs it and goes on).
+        """
+        if self._pending is None:
+            return None
+        asked, future = self._pending
+        if (not future.done() if not self.deterministic
+                else stamp_s - asked < self.settings.delay_s):
+            return None
+        self._pending = None
+        return future.result()
+
+    def _solve_in_worker(self, job: tuple) -> Plan:
+        """`solve_plan` on `job` in a fresh Python process (this module's `__main__`).
+
+        Why a process: IPOPT's linear solver MUMPS is not thread-safe (Ipopt >= 3.14
+        serialises its calls across threads, which would stall the horizon's solves
+        behind the long one), and a crashing solver must not take the live node down.
+        Why not `multiprocessing`: its "spawn" start re-runs the caller's main script
+        in the child (a script without a main guard ran its ride again), and "fork" in
+        a process with threads (ROS executors, the engine's inputs) can deadlock. The
+        job and the plan travel pickled over the worker's stdin and stdout.
+        """
+        worker = subprocess.Popen([sys.executable, "-m", __name__, str(os.getpid())],
+                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        self._worker = worker
+        out, _ = worker.communicate(pickle.dumps(job))
+        if worker.returncode != 0:
+            msg = f"the course re-solve worker exited with code {worker.returncode}"
+            raise SolveError(msg, status="worker_failed")
+        return pickle.loads(out)
+
+    def close(self) -> None:
+        """Stop now: a solve still running is abandoned (its worker killed)."""
+        worker = self._worker
+        if worker is not None and worker.poll() is None:
+            worker.kill()
+        self._waiter.shutdown(wait=False, cancel_futures=True)
+        self._pending = None
+
+
+def _watch_owner(owner_pid: int) -> None:
+    """Exit within a second of the owner's death (a killed node would otherwise leave
+    the worker solving on, holding the node's stderr)."""
+    while os.getppid() == owner_pid:
+        time.sleep(1.0)
+    os._exit(1)
+
+
+def _worker_main(owner_pid: int) -> None:
+    """The worker process: a pickled job on stdin, the pickled plan on stdout. It
+    ignores SIGINT (Ctrl-C reaches the whole process group; the owner kills it)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_watch_owner, args=(owner_pid,), daemon=True).start()
+    # The plan gets the stdout pipe to itself: anything the solver's C code prints goes
+    # to stderr instead.
+    result = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
+    course, rider, conditions, settings, guess, start = pickle.loads(sys.stdin.buffer.read())
+    plan = solve_plan(course, rider, conditions, settings, model="3d", guess=guess, start=start)
+    with result:
+        result.write(pickle.dumps(plan))
+
+
+if __name__ == "__main__":
+    _worker_main(int(sys.argv[1]))

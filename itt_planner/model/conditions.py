@@ -1,0 +1,66 @@
+"""Environmental conditions of a ride: grip of the road, wind and air density.
+
+Wind is given at the edge in the meteorological convention (speed, direction the wind
+blows FROM, clockwise from North) and converted here, once, to an ENU velocity vector.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+from itt_planner.errors import RiderError
+from itt_planner.model.rider import PAPER_AIR_DENSITY_KGPM3
+
+GRAVITY_MPS2 = 9.81
+
+
+@dataclass(frozen=True)
+class Conditions:
+    """Road grip (model.md C16), wind (E3) and air density. Defaults: dry, still air."""
+
+    mu_x: float = 1.0
+    mu_y: float = 1.0
+    wind_speed_mps: float = 0.0
+    wind_from_rad: float = 0.0
+    air_density_kgpm3: float = PAPER_AIR_DENSITY_KGPM3
+
+    def __post_init__(self) -> None:
+        for field in ("mu_x", "mu_y", "air_density_kgpm3"):
+            value = getattr(self, field)
+            if not math.isfinite(value) or value <= 0:
+                msg = f"conditions: {field} must be positive, got {value!r}"
+                raise RiderError(msg)
+        if not math.isfinite(self.wind_speed_mps) or self.wind_speed_mps < 0:
+            msg = f"conditions: wind_speed_mps must be >= 0, got {self.wind_speed_mps!r}"
+            raise RiderError(msg)
+
+    @classmethod
+    def from_meteo(cls, *, wind_kmh: float = 0.0, wind_from_deg: float = 0.0,
+                   mu: float = 1.0) -> Conditions:
+        """Build from edge units: wind speed in km/h, direction FROM in degrees (0 = North)."""
+        return cls(mu_x=mu, mu_y=mu, wind_speed_mps=wind_kmh / 3.6,
+                   wind_from_rad=math.radians(wind_from_deg))
+
+    def with_lateral_grip(self, fraction: float) -> Conditions:
+        """These conditions with `mu_y` scaled by `fraction` (0 < fraction <= 1).
+
+        For planning what a rider can follow: a rider who keeps part of the lateral grip
+        as headroom in a steady turn (the virtual rider of `simulate`) cannot ride a plan
+        that corners at 100 % of `mu_y`, so the optimum for that rider is the plan for
+        the grip it uses. In the model `mu_y` enters only C16's lateral term (and the
+        OCP's initial guess of corner speeds).
+
+        Raises:
+            RiderError: `fraction` outside (0, 1].
+        """
+        if not (math.isfinite(fraction) and 0 < fraction <= 1):
+            msg = f"conditions: lateral grip fraction must be in (0, 1], got {fraction!r}"
+            raise RiderError(msg)
+        return dataclasses.replace(self, mu_y=self.mu_y * fraction)
+
+    def wind_enu_mps(self) -> tuple[float, float]:
+        """Wind velocity (east, north) in m/s: where the air moves TO."""
+        return (-self.wind_speed_mps * math.sin(self.wind_from_rad),
+                -self.wind_speed_mps * math.cos(self.wind_from_rad))

@@ -1,0 +1,424 @@
+"""The rider-bicycle dynamics in the spatial domain as CasADi expressions (model.md 2-6).
+
+Two models share one parameter vector and one interface:
+
+- the 3D model, states `x = [n, alpha, phi, phi_dot, v, W_n, delta_n, E_n]`, controls
+  `u = [u_delta, u_W]` (E1-E9, C15, C16);
+- the 1D model (model.md section 6), states `x = [v, W_n, E_n]`, control `u = [u_W]`.
+- the steady-lean 3D model of the receding horizon (`build_3d_steady_lean`): roll
+  E4-E5 at equilibrium, states `x = [n, alpha, v, W_n, delta_n, E_n]` (why: horizon.py).
+
+Everything rider- or weather-specific (mass, drag, grip, wind, ...) is a symbolic
+parameter (`ModelParams.vector()`), not a constant, so the compiled integrator of
+`ocp`/`horizon` is reused for every rider and condition. The road enters through four
+numbers per interval (`ROAD`): the mean curvature and slope, the heading for the wind
+projection (E3), and the interval length.
+
+Non-smooth terms of the physics (`max(W_n, 0)`, `|v - V_w|`, the E9 switch at critical
+power) are smoothed with small, documented widths so a Newton-type solver sees C1
+functions; the numeric `power_w` reported in a Plan uses the exact formula.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.model.rider import Rider
+from itt_planner.model.wprime import WPrimeModel, e_n_rate
+
+#: State names of the 3D model (model.md section 2), in vector order.
+STATES_3D = ("n", "alpha", "phi", "phi_dot", "v", "w_n", "delta_n", "e_n")
+CONTROLS_3D = ("u_delta", "u_w")
+STATES_1D = ("v", "w_n", "e_n")
+CONTROLS_1D = ("u_w",)
+#: Road data per integration interval: mean curvature (1/m), mean slope angle (rad),
+#: centre-line heading (rad, for the wind projection of E3), interval length (m).
+ROAD = ("kappa", "beta", "theta", "ds")
+#: Model parameters, the order of `ModelParams.vector()`.
+PARAMS = ("mass", "roll_inertia", "com_height", "k_v", "crr", "wheelbase", "steer_max",
+          "power_rate_max", "steer_rate_max", "cp", "p_max", "w_prime", "pedal_lean", "mu_x",
+          "mu_y", "wind_e", "wind_n", "w_delta", "w_power", "efficiency")
+
+#: Smoothing width of max(W_n, 0) in the dynamics (normalised power; 1e-3 is ~1 W).
+_EPS_WN = 1e-3
+#: Smoothing of |v - V_w| (m/s)^2 under the square root.
+_EPS_AIR = 1e-2
+#: Softplus width of the E9 switch at critical power (W); part of the model (verify.py).
+E9_SHARPNESS_W = 5.0
+_SHARPNESS_W = E9_SHARPNESS_W
+#: Speed floor inside divisions (m/s), below the OCP's v_min so never active at a solution.
+_V_GUARD_MPS = 0.2
+#: Width (normalised) of the smooth pedalling gate of C15.
+_EPS_PEDAL = 0.02
+#: C15 switches pedalling off slightly before `pedal_lean` so that the smoothed gate
+#: leaves only a watt or two at exactly `pedal_lean`.
+_PEDAL_MARGIN = 0.95
+
+
+@dataclass(frozen=True)
+class ModelParams:
+    """Numeric values of `PARAMS` for one rider and one set of conditions (SI units)."""
+
+    rider: Rider
+    conditions: Conditions
+    w_delta: float = 0.01
+    w_power: float = 0.01
+
+    def vector(self) -> np.ndarray:
+        """The parameter vector in `PARAMS` order; k_v = 0.5 rho C_D A_f (E3).
+
+        `mu_y` is the effective lateral limit of C16, `lateral_limit_mps2 / g`: the grip,
+        or the rider's own cornering limit when that is lower.
+        """
+        r, c = self.rider, self.conditions
+        wind_e, wind_n = c.wind_enu_mps()
+        return np.array([
+            r.mass_kg, r.roll_inertia_kgm2, r.com_height_m,
+            0.5 * c.air_density_kgpm3 * r.drag_area_m2, r.crr, r.wheelbase_m, r.steer_max_rad,
+            r.power_rate_max_wps, r.steer_rate_max_radps, r.critical_power_w, r.max_power_w,
+            r.w_prime_j, r.pedal_lean_max_rad, c.mu_x,
+            lateral_limit_mps2(r, c) / GRAVITY_MPS2, wind_e, wind_n,
+            self.w_delta, self.w_power, r.drivetrain_efficiency,
+        ])
+
+
+def lateral_limit_mps2(rider: Rider, conditions: Conditions) -> float:
+    """The lateral acceleration C16 allows: `min(mu_y g, max_lateral_accel_mps2)`."""
+    grip = conditions.mu_y * GRAVITY_MPS2
+    if rider.max_lateral_accel_mps2 is None:
+        return grip
+    return min(grip, rider.max_lateral_accel_mps2)
+
+
+@dataclass(frozen=True)
+class SpatialModel:
+    """One model as CasADi Functions of `(x, u, road, par)` (all SX inside).
+
+    Attributes:
+        name: "3d" or "1d".
+        states, controls: names, in vector order.
+        ode: `(x, u, road, par) -> (dx/ds, dt/ds, dJ/ds)`.
+        path: `(x, par) -> g` path constraints that must be <= 0 (C15, C16 - 1).
+        outputs: `(x, par) -> [power_w, ax, ay, friction_use]` for reporting.
+    """
+
+    name: str
+    states: tuple[str, ...]
+    controls: tuple[str, ...]
+    ode: ca.Function
+    path: ca.Function
+    outputs: ca.Function
+
+    @property
+    def nx(self) -> int:
+        return len(self.states)
+
+    @property
+    def nu(self) -> int:
+        return len(self.controls)
+
+    def index(self, state: str) -> int:
+        return self.states.index(state)
+
+
+def _smooth_pos(a: ca.SX, eps: float) -> ca.SX:
+    """C-infinity approximation of max(a, 0), error <= eps/2 at a = 0."""
+    return 0.5 * (a + ca.sqrt(a * a + eps * eps))
+
+
+def _par(p: ca.SX) -> dict[str, ca.SX]:
+    return {name: p[i] for i, name in enumerate(PARAMS)}
+
+
+def _longitudinal(v: ca.SX, w_n: ca.SX, e_n: ca.SX, psi: ca.SX, beta: ca.SX,
+                  q: dict[str, ca.SX], wprime_model: WPrimeModel, eps_wn: float = _EPS_WN,
+                  sharpness_w: float = _SHARPNESS_W) -> tuple[ca.SX, ca.SX]:
+    """dv/dt (E3) and dE_n/dt (E9), shared by all models (smoothing widths: module doc)."""
+    g = GRAVITY_MPS2
+    # Guards for wild trial points only (inside the bounds they are inactive): speed in
+    # divisions, and the E9 softplus argument that would overflow exp() far beyond W_max.
+    v = ca.fmax(v, _V_GUARD_MPS)
+    p_plus = q["p_max"] * _smooth_pos(w_n, eps_wn)  # crank power: E9 and the advice
+    p_brake = q["mu_x"] * g * q["mass"] * v * (w_n - _smooth_pos(w_n, eps_wn))
+    # E3 [fix]: wind projected on the absolute heading psi; tail wind positive.
+    v_wind = q["wind_e"] * ca.cos(psi) + q["wind_n"] * ca.sin(psi)
+    v_air = v - v_wind
+    drag = q["k_v"] * v_air * ca.sqrt(v_air * v_air + _EPS_AIR)
+    resist = q["mass"] * g * (q["crr"] * ca.cos(beta) + ca.sin(beta))
+    # E3 with the drivetrain losses: power at the wheel = efficiency x crank power.
+    v_dot = ((q["efficiency"] * p_plus + p_brake) / (q["mass"] * v) - resist / q["mass"]
+             - drag / q["mass"])
+    e_dot = e_n_rate(e_n, ca.fmin(p_plus, 2 * q["p_max"]), q["cp"], q["w_prime"], wprime_model,
+                     sharpness_w=sharpness_w)
+    return v_dot, e_dot
+
+
+def _ax_squared(v: ca.SX, w_n: ca.SX, q: dict[str, ca.SX]) -> ca.SX:
+    """(a_x / (mu_x g))^2 of C16: tyre force per unit mass, pedalling or braking.
+
+    max(W_n,0)^2 and min(W_n,0)^2 are C1, so no smoothing is needed here.
+    """
+    g = GRAVITY_MPS2
+    pedal = q["efficiency"] * q["p_max"] * ca.fmax(w_n, 0) / (q["mass"] * v) / (q["mu_x"] * g)
+    brake = ca.fmin(w_n, 0)
+    return pedal * pedal + brake * brake
+
+
+def _kinematics(n: ca.SX, alpha: ca.SX, v: ca.SX, delta_n: ca.SX, kappa: ca.SX,
+                q: dict[str, ca.SX]) -> tuple[ca.SX, ca.SX]:
+    """Progress rate `s_dot` (E8) and yaw rate (E1), shared by both 3D models."""
+    delta = delta_n * q["steer_max"]
+    s_dot = ca.fmax(v, _V_GUARD_MPS) * ca.cos(alpha) / (1 - n * kappa)  # E8
+    yaw_rate = v * ca.tan(delta) / q["wheelbase"]  # E1 [fix]: kinematic bicycle v tan(d)/L
+    return s_dot, yaw_rate
+
+
+def _command_rate(u: ca.SX, rate_max: ca.SX, full_scale: ca.SX) -> ca.SX:
+    """E6/E7 [fix]: d(normalised command)/dt from a control normalised by its max rate."""
+    return u * rate_max / full_scale
+
+
+def _spatial_ode(name: str, x: ca.SX, u: ca.SX, road: ca.SX, p: ca.SX, x_dot: ca.SX,
+                 s_dot: ca.SX, penalties: tuple[ca.SX, ...]) -> ca.Function:
+    """Time derivatives -> space derivatives (divide by `s_dot`), with dt/ds and the
+    running cost of the objective (section 5): dt/ds (1 + w_1 u_delta^2 + w_2 u_W^2)."""
+    dt_ds = 1 / s_dot
+    weight = 1
+    for term in penalties:  # summed left to right, as the objective is written
+        weight = weight + term
+    return ca.Function(name, [x, u, road, p], [x_dot * dt_ds, dt_ds, dt_ds * weight],
+                       ["x", "u", "road", "p"], ["dxds", "dtds", "dJds"])
+
+
+def _friction(v: ca.SX, w_n: ca.SX, ay: ca.SX, q: dict[str, ca.SX]) -> ca.SX:
+    """C16: the friction ellipse on the tyre forces."""
+    return _ax_squared(v, w_n, q) + (ay / (q["mu_y"] * GRAVITY_MPS2)) ** 2
+
+
+def build_3d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
+    """The 3D model, E1-E9 with the [fix]es of model.md, path constraints C15 and C16."""
+    x = ca.SX.sym("x", len(STATES_3D))
+    u = ca.SX.sym("u", len(CONTROLS_3D))
+    road = ca.SX.sym("road", len(ROAD))
+    p = ca.SX.sym("p", len(PARAMS))
+    n, alpha, phi, phi_dot, v, w_n, delta_n, e_n = (x[i] for i in range(8))
+    u_delta, u_w = u[0], u[1]
+    kappa, beta, theta = road[0], road[1], road[2]
+    q = _par(p)
+    g = GRAVITY_MPS2
+
+    s_dot, yaw_rate = _kinematics(n, alpha, v, delta_n, kappa, q)
+    i_x0 = q["roll_inertia"] + q["com_height"] ** 2 * q["mass"]
+    # E5 [fix]: nonlinear inverted pendulum, steady lean tan(phi) = -(v^2 tan(d)/L)/g.
+    phi_ddot = (q["com_height"] * q["mass"] / i_x0) * (
+        g * ca.sin(phi) + v * yaw_rate * ca.cos(phi))
+    v_dot, e_dot = _longitudinal(v, w_n, e_n, theta + alpha, beta, q, wprime_model)
+    x_dot = ca.vertcat(
+        v * ca.sin(alpha),  # E2 (time derivative)
+        yaw_rate - kappa * s_dot,  # E1
+        phi_dot,  # E4
+        phi_ddot,  # E5
+        v_dot,  # E3
+        _command_rate(u_w, q["power_rate_max"], q["p_max"]),  # E6
+        _command_rate(u_delta, q["steer_rate_max"], q["steer_max"]),  # E7
+        e_dot,  # E9
+    )
+    ode = _spatial_ode(f"ode3d_{wprime_model.value}", x, u, road, p, x_dot, s_dot,
+                       (q["w_delta"] * u_delta ** 2, q["w_power"] * u_w ** 2))
+
+    ay = v * yaw_rate
+    friction = _friction(v, w_n, ay, q)
+    # C15: W_n <= max(0, 1 - (phi/phi_pedal)^2), smoothed from the feasible side.
+    r = phi / (_PEDAL_MARGIN * q["pedal_lean"])
+    pedal = w_n - _smooth_pos(1 - r * r, _EPS_PEDAL)
+    path = ca.Function("path3d", [x, p], [ca.vertcat(friction - 1, pedal)], ["x", "p"], ["g"])
+    outputs = ca.Function("out3d", [x, p], [_report(v, w_n, ay, friction, q)], ["x", "p"], ["y"])
+    return SpatialModel("3d", STATES_3D, CONTROLS_3D, ode, path, outputs)
+
+
+#: State names of the steady-lean horizon model (`build_3d_steady_lean`), in vector order.
+STATES_3D_STEADY = ("n", "alpha", "v", "w_n", "delta_n", "e_n")
+
+
+def steady_lean_rad(ay: ca.SX | np.ndarray) -> ca.SX | np.ndarray:
+    """Lean of the steady turn (E5 with phi_ddot = phi_dot = 0): tan(phi) = -a_y / g."""
+    if isinstance(ay, (ca.SX, ca.MX, ca.DM)):
+        return -ca.atan(ay / GRAVITY_MPS2)
+    return -np.arctan(np.asarray(ay) / GRAVITY_MPS2)
+
+
+def build_3d_steady_lean(wprime_model: WPrimeModel = WPrimeModel.SKIBA, *,
+                         eps_wn: float = _EPS_WN, sharpness_w: float = _SHARPNESS_W
+                         ) -> SpatialModel:
+    """The 3D model with quasi-steady roll, for the receding horizon (not the full plan).
+
+    Same as `build_3d` (E1-E3, E6-E9, C15, C16) except that the roll dynamics E4-E5 are
+    replaced by their equilibrium, the steady turn `tan(phi) = -a_y / g` with
+    `a_y = v^2 tan(delta) / L`: `phi` and `phi_dot` stop being states and `phi` is an
+    algebraic function of speed and steering. This removes the unstable roll mode
+    (time constant ~0.45 s), so shooting intervals of 5-15 m are well conditioned.
+    Lean and grip stay linked: C16 bounds `a_y`, hence `phi`, and C15 gates pedalling
+    on that `phi`. States `x = [n, alpha, v, W_n, delta_n, E_n]`, controls as the 3D model.
+    """
+    x = ca.SX.sym("x", len(STATES_3D_STEADY))
+    u = ca.SX.sym("u", len(CONTROLS_3D))
+    road = ca.SX.sym("road", len(ROAD))
+    p = ca.SX.sym("p", len(PARAMS))
+    n, alpha, v, w_n, delta_n, e_n = (x[i] for i in range(6))
+    u_delta, u_w = u[0], u[1]
+    kappa, beta, theta = road[0], road[1], road[2]
+    q = _par(p)
+
+    s_dot, yaw_rate = _kinematics(n, alpha, v, delta_n, kappa, q)
+    v_dot, e_dot = _longitudinal(v, w_n, e_n, theta + alpha, beta, q, wprime_model,
+                                 eps_wn, sharpness_w)
+    x_dot = ca.vertcat(
+        v * ca.sin(alpha),  # E2
+        yaw_rate - kappa * s_dot,  # E1
+        v_dot,  # E3
+        _command_rate(u_w, q["power_rate_max"], q["p_max"]),  # E6
+        _command_rate(u_delta, q["steer_rate_max"], q["steer_max"]),  # E7
+        e_dot,  # E9
+    )
+    tag = f"{wprime_model.value}_{eps_wn:g}_{sharpness_w:g}".replace(".", "p").replace("-", "m")
+    ode = _spatial_ode(f"ode3dsteady_{tag}", x, u, road, p, x_dot, s_dot,
+                       (q["w_delta"] * u_delta ** 2, q["w_power"] * u_w ** 2))
+
+    ay = v * yaw_rate
+    friction = _friction(v, w_n, ay, q)
+    r = steady_lean_rad(ay) / (_PEDAL_MARGIN * q["pedal_lean"])  # C15 on the steady lean
+    pedal = w_n - _smooth_pos(1 - r * r, _EPS_PEDAL)
+    path = ca.Function("path3dsteady", [x, p], [ca.vertcat(friction - 1, pedal)],
+                       ["x", "p"], ["g"])
+    outputs = ca.Function("out3dsteady", [x, p], [_report(v, w_n, ay, friction, q)],
+                          ["x", "p"], ["y"])
+    return SpatialModel("3dsteady", STATES_3D_STEADY, CONTROLS_3D, ode, path, outputs)
+
+
+def build_1d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
+    """The 1D baseline (model.md section 6): E3, E6, E9 with n = alpha = phi = delta = 0."""
+    x = ca.SX.sym("x", len(STATES_1D))
+    u = ca.SX.sym("u", len(CONTROLS_1D))
+    road = ca.SX.sym("road", len(ROAD))
+    p = ca.SX.sym("p", len(PARAMS))
+    v, w_n, e_n = x[0], x[1], x[2]
+    q = _par(p)
+    v_dot, e_dot = _longitudinal(v, w_n, e_n, road[2], road[1], q, wprime_model)
+    x_dot = ca.vertcat(v_dot, _command_rate(u[0], q["power_rate_max"], q["p_max"]), e_dot)
+    ode = _spatial_ode(f"ode1d_{wprime_model.value}", x, u, road, p, x_dot,
+                       ca.fmax(v, _V_GUARD_MPS), (q["w_power"] * u[0] ** 2,))
+    friction = _ax_squared(v, w_n, q)
+    path = ca.Function("path1d", [x, p], [friction - 1], ["x", "p"], ["g"])
+    outputs = ca.Function("out1d", [x, p], [_report(v, w_n, 0 * v, friction, q)],
+                          ["x", "p"], ["y"])
+    return SpatialModel("1d", STATES_1D, CONTROLS_1D, ode, path, outputs)
+
+
+def _report(v: ca.SX, w_n: ca.SX, ay: ca.SX, friction: ca.SX, q: dict[str, ca.SX]) -> ca.SX:
+    """[power_w, ax, ay, friction_use] with the exact (unsmoothed) power of section 2.
+
+    power_w is the rider's (crank) power when pedalling, the braking power at the contact
+    point when negative; ax is the tyre force per unit mass (wheel power when pedalling).
+    """
+    g = GRAVITY_MPS2
+    power = q["p_max"] * ca.fmax(w_n, 0) + q["mu_x"] * g * q["mass"] * v * ca.fmin(w_n, 0)
+    ax = (q["efficiency"] * q["p_max"] * ca.fmax(w_n, 0) / (q["mass"] * v)
+          + q["mu_x"] * g * ca.fmin(w_n, 0))
+    return ca.vertcat(power, ax, ay, friction)
+
+
+def build_model(kind: str, wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
+    """`build_3d` or `build_1d` by name.
+
+    Raises:
+        ValueError: unknown model name.
+    """
+    if kind == "3d":
+        return build_3d(wprime_model)
+    if kind == "1d":
+        return build_1d(wprime_model)
+    raise ValueError(f"unknown model {kind!r}: choose '3d' or '1d'")
+
+
+def rk4_step(model: SpatialModel, substeps: int) -> ca.Function:
+    """One multiple-shooting interval: `substeps` RK4 steps over `road[ds]` metres.
+
+    Returns `F(x, u, road, p) -> (x_end, dt, dJ)` with the interval's time and cost as
+    quadratures. Controls are constant over the interval (zero-order hold).
+    """
+    x = ca.SX.sym("x", model.nx)
+    u = ca.SX.sym("u", model.nu)
+    road = ca.SX.sym("road", len(ROAD))
+    p = ca.SX.sym("p", len(PARAMS))
+    h = road[3] / substeps
+    xk, t, j = x, 0, 0
+    for _ in range(substeps):
+        k1, t1, j1 = model.ode(xk, u, road, p)
+        k2, t2, j2 = model.ode(xk + h / 2 * k1, u, road, p)
+        k3, t3, j3 = model.ode(xk + h / 2 * k2, u, road, p)
+        k4, t4, j4 = model.ode(xk + h * k3, u, road, p)
+        xk = xk + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        t = t + h / 6 * (t1 + 2 * t2 + 2 * t3 + t4)
+        j = j + h / 6 * (j1 + 2 * j2 + 2 * j3 + j4)
+    return ca.Function(f"F{model.name}_{substeps}", [x, u, road, p], [xk, t, j],
+                       ["x", "u", "road", "p"], ["xf", "dt", "dJ"])
+
+
+def steady_speed_mps(power_w: float, rider: Rider, conditions: Conditions = Conditions(),
+                     grade: float = 0.0) -> float:
+    """Steady speed of the E3 power balance (Martin et al. 1998 form, no wind), m/s.
+
+    Solves `eta P = v (m g (c_rr cos b + sin b) + k_v v^2)` (`eta`: drivetrain efficiency)
+    for the physical root: the largest real root of the depressed cubic
+    `v^3 + a v + b = 0`. Climbing or on the flat (`a > 0`) there is one real root
+    (Cardano). On a descent steep enough that gravity beats rolling resistance (`a < 0`)
+    the cubic can have three real roots (0 < v1 < v2 with a negative third when P is small,
+    a double root at P = 0 ... ); the physical speed is where propulsion plus gravity
+    balances drag from above, the largest root, from the trigonometric form. With P = 0
+    that is the terminal speed `sqrt(-a)`. One Newton step polishes the closed form
+    (Cardano loses digits when `a` is large and `b` small). Returns 0 when there is no
+    positive balance (no power on a road that does not descend: the rider stops).
+
+    Raises:
+        ValueError: negative or non-finite power, or a non-finite grade.
+    """
+    if not (math.isfinite(power_w) and power_w >= 0 and math.isfinite(grade)):
+        raise ValueError(f"steady speed needs a power >= 0 W and a finite grade, got "
+                         f"{power_w!r} W at {grade!r}")
+    beta = math.atan(grade)
+    k_v = 0.5 * conditions.air_density_kgpm3 * rider.drag_area_m2
+    a = rider.mass_kg * GRAVITY_MPS2 * (rider.crr * math.cos(beta) + math.sin(beta)) / k_v
+    b = -rider.drivetrain_efficiency * power_w / k_v
+    disc = (b / 2) ** 2 + (a / 3) ** 3
+    if disc >= 0:  # one real root
+        root = math.sqrt(disc)
+        v = math.copysign(abs(-b / 2 + root) ** (1 / 3), -b / 2 + root) + math.copysign(
+            abs(-b / 2 - root) ** (1 / 3), -b / 2 - root)
+    else:  # three real roots (a < 0): the largest, trigonometric form
+        r = math.sqrt(-a / 3)
+        cos3 = max(-1.0, min(1.0, (3 * b / (2 * a)) * math.sqrt(-3 / a)))
+        v = 2 * r * math.cos(math.acos(cos3) / 3)
+    slope = 3 * v * v + a
+    if slope > 0:  # Newton polish; f is convex beyond its largest root's neighbourhood
+        v -= (v ** 3 + a * v + b) / slope
+    return max(v, 0.0)
+
+
+def speed_bound_mps(rider: Rider, conditions: Conditions, steepest_grade: float,
+                    *, start_mps: float = 0.0) -> float:
+    """An upper bound on the speed of any physical ride of the course (m/s).
+
+    Above the steady speed at full power (`max_power_w`) on the steepest descent the
+    rider decelerates everywhere on the course, so no ride that starts slower can get
+    faster; a tail wind adds at most its own speed. The margin (x1.25 + 3 m/s) keeps
+    the bound inactive at every physical optimum; it exists so that an integration
+    artefact (a coarse step at low speed, issue 18) can never be an optimum.
+    """
+    grade = min(float(steepest_grade), 0.0)
+    v_max = steady_speed_mps(rider.max_power_w, rider, conditions, grade)
+    return max(1.25 * (v_max + conditions.wind_speed_mps) + 3.0, start_mps)

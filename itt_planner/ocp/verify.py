@@ -1,0 +1,228 @@
+"""Independent check of a solved plan: replay its controls and compare (issue 18).
+
+The OCP integrates the dynamics with one RK4 step (or a few) per mesh interval, in the
+spatial domain, where `dv/ds = a / v` is stiff at low speed: a coarse step there can
+create speed out of nothing, and IPOPT will happily ride on such an artefact (a plan that
+braked to 0.5 m/s and then "accelerated" to 258 m/s within 10 m came out as
+`Solve_Succeeded`). So every full-course plan is replayed here:
+
+- Longitudinal replay (both models): the plan's power/braking command `W_n(s)` and, for
+  3D, its line (`n(s)`, `alpha(s)`) are the inputs of a forward simulation of E3 (speed),
+  E9 (W') and time, with SciPy's adaptive `solve_ivp` (RK45, rtol 1e-6) - not the
+  transcription's RK4 - on the course's own road data (slope, curvature and heading of
+  the course grid, not the mesh's interval means) and with the exact, unsmoothed E3
+  (`max(W_n, 0)`, `|v - V_w|`). E9 keeps the model's softplus switch at CP
+  (`model.E9_SHARPNESS_W`): it is part of the model, not of the transcription, and
+  with the exact kink a plan that rides at CP for half an hour differs by kJ (the
+  softplus depletes ~3.5 W at exactly CP). The step is adaptive with a cap
+  (`_MAX_STEP_M`) so that no mesh interval's power can be stepped over. Speed starts
+  from the plan's start speed and is free after that, so an integration artefact shows
+  as a speed, time or W' mismatch.
+- Lateral check (3D): the roll mode is an unstable pendulum (~0.45 s), so an open-loop
+  replay of the steering over a whole course diverges whatever the plan; instead every
+  interval is re-integrated from the plan's node with a 16x finer RK4 step (one
+  vectorised CasADi call) and the end state compared with the plan's next node.
+
+Tolerances (`VerifyTolerance`, documented there) are loose enough for the difference
+between the transcription's smoothing and the exact physics, tight enough that a
+transcription artefact cannot pass. A plan outside them is `invalid` (`solver.PlanStatus`).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import time
+from dataclasses import asdict, dataclass
+
+import casadi as ca
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.course.geometry import Course
+from itt_planner.ocp.mesh import road_data
+from itt_planner.model.dynamics import E9_SHARPNESS_W, ModelParams, SpatialModel, rk4_step
+from itt_planner.ocp.guess import PLAN_ARRAYS
+from itt_planner.ocp.plan import Plan
+from itt_planner.model.rider import Rider
+from itt_planner.model.wprime import WPrimeModel, e_n_rate
+
+#: Substeps of the fine RK4 of the lateral check, per transcription substep.
+_FINE_FACTOR = 16
+#: Largest step of the adaptive replay (m): below the coarsest mesh interval.
+_MAX_STEP_M = 5.0
+
+
+@dataclass(frozen=True)
+class VerifyTolerance:
+    """What the replay may differ from the plan by (SI units).
+
+    Attributes:
+        speed_abs_mps, speed_rel: the speed mismatch allowed at any node:
+            `speed_abs_mps + speed_rel * v_plan`. The smoothed E3 of the OCP (max(W_n, 0)
+            within ~1 W, |v - V_w| within 0.1 m/s) and the power held linear in `s`
+            between nodes (the plan holds its rate in time) account for a few 0.01 m/s;
+            the artefact of issue 18 was 250 m/s.
+        time_rel, time_abs_s: mismatch of the elapsed time at any node:
+            `time_abs_s + time_rel * t_plan`.
+        w_prime_j, w_prime_rel: mismatch of W' at any node:
+            `w_prime_j + w_prime_rel * W'_0` (the E9 switch is smoothed over ~5 W in the OCP).
+        lateral_m, heading_rad, roll_rad: 3D only, largest per-interval defect of the
+            lateral offset, relative heading and lean against the fine re-integration.
+    """
+
+    speed_abs_mps: float = 0.3
+    speed_rel: float = 0.02
+    time_rel: float = 0.003
+    time_abs_s: float = 0.5
+    w_prime_j: float = 300.0
+    w_prime_rel: float = 0.03
+    lateral_m: float = 0.05
+    heading_rad: float = 0.01
+    roll_rad: float = 0.02
+
+
+@dataclass(frozen=True)
+class Verification:
+    """The result of `verify_plan` (SI units). `worst` names the largest mismatch
+    relative to its tolerance and `worst_s_m` where it is."""
+
+    verified: bool
+    max_speed_error_mps: float
+    max_speed_error_s_m: float
+    finish_time_error_s: float
+    max_time_error_s: float
+    max_w_prime_error_j: float
+    max_w_prime_error_s_m: float
+    max_lateral_defect_m: float
+    max_heading_defect_rad: float
+    max_roll_defect_rad: float
+    worst: str
+    worst_s_m: float
+    worst_ratio: float
+    replay_finish_s: float
+    check_time_s: float
+
+    def as_dict(self) -> dict[str, float | bool | str]:
+        """JSON-ready figures (rounded)."""
+        return {k: (round(v, 4) if isinstance(v, float) else v) for k, v in asdict(self).items()}
+
+
+def verify_plan(plan: Plan, course: Course, rider: Rider, conditions: Conditions = Conditions(),
+                *, model: SpatialModel | None = None, substeps: int = 1,
+                wprime_model: WPrimeModel = WPrimeModel.SKIBA,
+                tolerance: VerifyTolerance = VerifyTolerance()) -> Verification:
+    """Replay `plan`'s controls (module docstring) and compare with the plan.
+
+    `model` (3D only) enables the lateral check, with the transcription's `substeps`.
+    A replay that cannot be integrated (non-finite plan, a speed that collapses to 0)
+    is a failed verification, never an exception.
+    """
+    t0 = time.perf_counter()
+    v_sim, t_sim, w_sim = _replay(plan, course, rider, conditions, wprime_model)
+    finite = bool(np.all(np.isfinite(v_sim)) and np.all(np.isfinite(t_sim)))
+    if not finite:
+        v_sim = np.nan_to_num(v_sim, nan=0.0)
+        t_sim = np.nan_to_num(t_sim, nan=np.inf)
+        w_sim = np.nan_to_num(w_sim, nan=0.0)
+    tol = tolerance
+    dv = np.abs(v_sim - plan.v_mps)
+    dt = np.abs(t_sim - plan.t_s)
+    dw = np.abs(w_sim - plan.w_prime_j)
+    ratios = {
+        "speed": dv / (tol.speed_abs_mps + tol.speed_rel * plan.v_mps),
+        "time": dt / (tol.time_abs_s + tol.time_rel * plan.t_s),
+        "w_prime": dw / (tol.w_prime_j + tol.w_prime_rel * rider.w_prime_j),
+    }
+    lateral = {"lateral": 0.0, "heading": 0.0, "roll": 0.0}
+    if model is not None and model.name == "3d":
+        defects = _interval_defects(plan, course, rider, conditions, model, substeps)
+        for key, name, scale in (("lateral", "n", tol.lateral_m),
+                                 ("heading", "alpha", tol.heading_rad),
+                                 ("roll", "phi", tol.roll_rad)):
+            d = np.abs(defects[model.index(name)])
+            lateral[key] = float(np.max(d)) if d.size else 0.0
+            ratios[key] = np.concatenate([[0.0], d / scale])
+    worst, worst_i, worst_ratio = "none", 0, 0.0
+    for name, r in ratios.items():
+        i = int(np.argmax(r))
+        if r[i] > worst_ratio:
+            worst, worst_i, worst_ratio = name, i, float(r[i])
+    iv, iw = int(np.argmax(dv)), int(np.argmax(dw))
+    return Verification(
+        verified=finite and worst_ratio <= 1.0,
+        max_speed_error_mps=float(dv[iv]), max_speed_error_s_m=float(plan.s_m[iv]),
+        finish_time_error_s=float(t_sim[-1] - plan.t_s[-1]), max_time_error_s=float(np.max(dt)),
+        max_w_prime_error_j=float(dw[iw]), max_w_prime_error_s_m=float(plan.s_m[iw]),
+        max_lateral_defect_m=lateral["lateral"], max_heading_defect_rad=lateral["heading"],
+        max_roll_defect_rad=lateral["roll"], worst=worst if finite else "non-finite replay",
+        worst_s_m=float(plan.s_m[worst_i]), worst_ratio=worst_ratio if finite else math.inf,
+        replay_finish_s=float(t_sim[-1]), check_time_s=time.perf_counter() - t0)
+
+
+def _replay(plan: Plan, course: Course, rider: Rider, conditions: Conditions,
+            wprime_model: WPrimeModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Speed, elapsed time and W' (J) of the forward simulation at the plan's nodes."""
+    s_nodes = plan.s_m.tolist()
+    w_n, n_m, alpha = plan.w_n.tolist(), plan.n_m.tolist(), plan.alpha_rad.tolist()
+    ds_c, n_c = course.ds_m, len(course.s_m)
+    z, theta, kappa = course.z_m.tolist(), course.theta_rad.tolist(), course.kappa_per_m.tolist()
+    g, m = GRAVITY_MPS2, rider.mass_kg
+    k_v = 0.5 * conditions.air_density_kgpm3 * rider.drag_area_m2
+    wind_e, wind_n = conditions.wind_enu_mps()
+    mu_x, p_max, eta = conditions.mu_x, rider.max_power_w, rider.drivetrain_efficiency
+    cp, w0 = rider.critical_power_w, rider.w_prime_j
+    last = len(s_nodes) - 2
+
+    def rhs(s: float, y: np.ndarray) -> list[float]:
+        v = max(float(y[0]), 0.05)
+        k = min(max(bisect.bisect_right(s_nodes, s) - 1, 0), last)
+        f = (s - s_nodes[k]) / (s_nodes[k + 1] - s_nodes[k])
+        wn = w_n[k] + f * (w_n[k + 1] - w_n[k])
+        n = n_m[k] + f * (n_m[k + 1] - n_m[k])
+        al = alpha[k] + f * (alpha[k + 1] - alpha[k])
+        j = min(max(int(s / ds_c), 0), n_c - 2)
+        fc = s / ds_c - j
+        sin_b = math.sin(math.atan((z[j + 1] - z[j]) / ds_c))
+        cos_b = math.sqrt(1.0 - sin_b * sin_b)
+        kap = kappa[j] + fc * (kappa[j + 1] - kappa[j])
+        psi = theta[j] + fc * (theta[j + 1] - theta[j]) + al
+        s_dot = v * math.cos(al) / (1.0 - n * kap)
+        p_plus = p_max * max(wn, 0.0)
+        p_brake = mu_x * g * m * v * min(wn, 0.0)
+        v_air = v - (wind_e * math.cos(psi) + wind_n * math.sin(psi))
+        accel = ((eta * p_plus + p_brake) / (m * v) - g * (rider.crr * cos_b + sin_b)
+                 - k_v * v_air * abs(v_air) / m)
+        e_dot = e_n_rate(float(y[1]), p_plus, cp, w0, wprime_model,
+                         sharpness_w=E9_SHARPNESS_W)
+        return [accel / s_dot, e_dot / s_dot, 1.0 / s_dot]
+
+    y0 = [float(plan.v_mps[0]), float(plan.e_n[0]), 0.0]
+    try:
+        sol = solve_ivp(rhs, (float(plan.s_m[0]), float(plan.s_m[-1])), y0, method="RK45",
+                        t_eval=plan.s_m, rtol=1e-6, atol=[1e-4, 1e-6, 1e-4],
+                        max_step=_MAX_STEP_M)
+    except (ValueError, ZeroDivisionError, OverflowError):
+        sol = None
+    if sol is None or sol.y.shape[1] != plan.n_nodes:
+        nan = np.full(plan.n_nodes, np.nan)
+        return nan, nan, nan
+    return sol.y[0], sol.y[2], sol.y[1] * rider.w_prime_j
+
+
+def _interval_defects(plan: Plan, course: Course, rider: Rider, conditions: Conditions,
+                      model: SpatialModel, substeps: int) -> np.ndarray:
+    """Fine-RK4 end state of every interval from the plan's node minus the plan's next node.
+
+    The road data per interval are those of the OCP (`mesh.road_data`): this check is
+    about the integration of each interval, the longitudinal replay about the road.
+    """
+    x = np.vstack([getattr(plan, PLAN_ARRAYS[name]) for name in model.states])
+    u = np.vstack([getattr(plan, PLAN_ARRAYS[name])[:-1] for name in model.controls])
+    road = road_data(course, plan.s_m)
+    par = ModelParams(rider, conditions).vector()
+    n = plan.n_nodes - 1
+    fine = rk4_step(model, substeps * _FINE_FACTOR).map(n)
+    x_end = np.asarray(fine(x[:, :-1], u, road, ca.repmat(par, 1, n))[0])
+    return x_end - x[:, 1:]

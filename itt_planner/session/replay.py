@@ -1,0 +1,227 @@
+"""The embedded replay: a ride log fed straight into a pacing session, in one process.
+
+This module only reads and paces the log; the session (`session.RideSession`, the same
+one the ROS 2 node drives) owns the engine and the outputs. Messages go to the session
+in log (= stamp) order and its timer runs on the stamps only, so a replay is
+deterministic and runs as fast as the planner allows (or paced at a multiple of real
+time). The output log holds every input message, copied byte for byte, plus every
+advice, target power, target line and diagnostics message; a Rerun recording can be
+written alongside. A damaged input is replayed as far as it can be read, the output is
+finished, and the damage is reported in the result.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from itt_msgs_py import topics
+from itt_planner.live.advice_shaping import advice_stats
+from itt_planner.errors import RideLogError
+from itt_planner.logs.ridelog import SESSION_METADATA, RideLogReader, message_count
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.session.ride_session import RideSession, SessionConfig
+
+#: The output log's metadata record of the session (reports read it).
+
+
+@dataclass(frozen=True)
+class ReplaySettings:
+    """How to pace a replay (what decides the advice is the `SessionConfig`).
+
+    Attributes:
+        speed: pace as `speed` x real time by the stamps (1.0 = real time); None = as
+            fast as possible.
+    """
+
+    speed: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.speed is not None and not (self.speed > 0 and math.isfinite(self.speed)):
+            raise ValueError(f"replay speed must be > 0 (or None for max), got {self.speed}")
+
+
+@dataclass
+class ReplayResult:
+    """Counts and timing of one replay (the CLI's `--json` object)."""
+
+    messages_in: int = 0
+    advice_out: int = 0
+    ride_duration_s: float = 0.0
+    wall_time_s: float = 0.0
+    output: Path | None = None
+    rrd: Path | None = None
+    warnings: list[str] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)
+    topics_out: dict[str, int] = field(default_factory=dict)
+    solve_times_s: list[float] = field(default_factory=list)
+    fallbacks: int = 0
+    counts: dict[str, Any] = field(default_factory=dict)
+    advice_stats: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def realtime_factor(self) -> float:
+        """Ride time replayed per second of wall time."""
+        return self.ride_duration_s / self.wall_time_s if self.wall_time_s > 0 else math.inf
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain JSON-able values."""
+        solve = sorted(self.solve_times_s)
+        return {
+            "messages_in": self.messages_in, "advice_out": self.advice_out,
+            "ride_duration_s": self.ride_duration_s, "wall_time_s": self.wall_time_s,
+            "realtime_factor": self.realtime_factor,
+            "output": str(self.output) if self.output else None,
+            "rrd": str(self.rrd) if self.rrd else None,
+            "warnings": list(self.warnings), "errors": list(self.errors),
+            "topics_out": dict(self.topics_out), "fallbacks": self.fallbacks,
+            "counts": dict(self.counts), "advice_stats": dict(self.advice_stats),
+            "solve_time_median_s": solve[len(solve) // 2] if solve else None,
+            "solve_time_max_s": solve[-1] if solve else None,
+        }
+
+
+class _Pacer:
+    """Sleeps so that stamps advance at `speed` x the wall clock (no-op for max speed)."""
+
+    def __init__(self, speed: float | None) -> None:
+        self.speed = speed
+        self.origin: tuple[float, float] | None = None  # (first stamp, wall time then)
+
+    def wait(self, stamp_s: float) -> None:
+        if self.speed is None:
+            return
+        now = time.perf_counter()
+        if self.origin is None:
+            self.origin = (stamp_s, now)
+            return
+        due = self.origin[1] + (stamp_s - self.origin[0]) / self.speed
+        if due > now:
+            time.sleep(due - now)
+
+
+def replay(log_path: str | Path, session: RideSession, *,
+           settings: ReplaySettings = ReplaySettings(), progress: bool = False) -> ReplayResult:
+    """Feed a ride log into `session` on its stamp clock; the session writes the outputs.
+
+    The session is closed at the end (its output log finished, Rerun flushed), also when
+    reading fails.
+
+    Args:
+        log_path: the input MCAP ride log.
+        session: the pacing session (built by the caller, so tests and benchmarks can
+            vary its engine).
+        settings: pacing options.
+        progress: show a progress bar on stderr.
+
+    Returns:
+        The counts; damage of the input is in `errors`, never raised.
+
+    Raises:
+        RideLogError: the input cannot be opened at all, or the output cannot be written.
+    """
+    namespace = session.config.namespace
+    result = ReplayResult(output=session.writer.path if session.writer else None)
+    own_topics = {t.name(namespace) for t in topics.TOPICS
+                  if t.direction is topics.Direction.OUT}
+    replaced: dict[str, int] = {}
+    try:
+        reader = RideLogReader(log_path, namespace=namespace)
+    except BaseException:
+        session.close()
+        raise
+    pacer = _Pacer(settings.speed)
+    bar = tqdm(total=message_count(log_path), unit="msg", file=sys.stderr,
+               disable=not progress, desc=Path(log_path).name)
+    start = time.perf_counter()
+    first: float | None = None
+    last: float | None = None
+    try:
+        try:
+            for raw, value in reader.decoded():
+                bar.update()
+                if raw.topic in own_topics:  # an earlier replay's output: recomputed here
+                    replaced[raw.topic] = replaced.get(raw.topic, 0) + 1
+                    continue
+                stamp = raw.log_time_ns / 1e9  # correctly rounded: whole seconds stay whole
+                session.advance_to(stamp)  # the advice of earlier stamps goes out first
+                pacer.wait(stamp)
+                result.messages_in += 1
+                first = stamp if first is None else first
+                last = stamp if last is None else max(last, stamp)
+                if isinstance(value, GpsFix | WheelSpeed | PowerReading):
+                    session.on_sample(value, raw)
+                else:
+                    session.write_raw(raw)
+        except RideLogError as err:
+            # Everything readable was replayed; finish the output and report the damage.
+            result.errors.append(str(err))
+        session.finish()
+        if session.writer is not None:
+            for name, record in reader.metadata.items():
+                if name != SESSION_METADATA:  # an earlier replay's: the session writes its own
+                    session.writer.add_metadata(name, record)
+    finally:
+        bar.close()
+        session.close()
+    if session.writer is not None:
+        result.topics_out = dict(session.writer.counts)
+    result.wall_time_s = time.perf_counter() - start
+    result.solve_times_s = list(session.engine.solve_times_s)
+    result.ride_duration_s = (last - first) if first is not None and last is not None else 0.0
+    result.advice_out = session.advice_out
+    result.fallbacks = session.fallbacks
+    result.counts = session.counts()
+    result.warnings.extend(reader.warnings)
+    result.warnings.extend(f"input had {n} messages on {topic}: replaced by the replay's own"
+                           for topic, n in sorted(replaced.items()))
+    result.warnings.extend(session.warnings())
+    if session.advice is not None:
+        result.advice_stats = advice_stats(session.advice)
+        if unexplained := result.advice_stats["unexplained_steps"]:
+            result.warnings.append(f"{unexplained} target power steps over "
+                                   f"{result.advice_stats['step_limit_w']:.0f} W without a cue")
+    return result
+
+
+def parse_speed(text: str) -> float | None:
+    """`max` -> None (as fast as possible), else the real-time multiple (`1`, `10`).
+
+    Raises:
+        ValueError: not `max` and not a positive number.
+    """
+    if text.strip().lower() == "max":
+        return None
+    value = float(text)
+    if not (value > 0 and math.isfinite(value)):
+        raise ValueError(f"--speed must be 'max' or a positive number, got {text!r}")
+    return value
+
+
+def replay_ride(log_path: str | Path, config: SessionConfig, *,
+                output: str | Path | None = None, rrd: str | Path | None = None,
+                rerun_sinks: tuple[str, ...] = (),
+                settings: ReplaySettings = ReplaySettings(),
+                progress: bool = False) -> ReplayResult:
+    """Open a session of `config` (course, rider, cached full-course plan) and replay.
+
+    `rrd` saves a Rerun recording; `rerun_sinks` are more Rerun destinations in
+    `RerunSink.parse` form (`spawn`, `connect[:URL]`, `serve`), fed live by the same
+    stream.
+
+    Raises:
+        CourseError, RiderError, SolveError: the course, rider or plan is unusable.
+        RideLogError: the input log cannot be opened, or the output cannot be written.
+    """
+    sinks = ((f"file:{rrd}",) if rrd is not None else ()) + tuple(rerun_sinks)
+    session = RideSession.open(config, output_log=output, rerun_sinks=sinks,
+                               metadata={"input": str(log_path)}, keep_advice=True)
+    result = replay(log_path, session, settings=settings, progress=progress)
+    result.rrd = Path(rrd) if rrd is not None else None
+    return result

@@ -1,0 +1,94 @@
+"""The package layout is the architecture: stages import only downward, the live loop and
+the planner never import logs, ROS or Rerun, no import cycles, small documented modules."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+PKG = Path(__file__).resolve().parents[1] / "itt_planner"
+
+#: The data path, bottom to top; a module may import its own stage and those before it.
+STAGES = ("errors", "course", "model", "ocp", "live", "logs", "view", "session", "sim",
+          "calibration", "sweep", "cli")
+#: Third-party edges the core stages (course .. live) must never reach.
+EDGE_PACKAGES = ("itt_msgs_py", "rclpy", "rerun", "mcap", "mcap_ros2", "rosbags",
+                 "itt_planner_ros")
+MAX_LINES = 400
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PKG.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _modules() -> dict[str, Path]:
+    return {_module_name(p): p for p in sorted(PKG.rglob("*.py"))}
+
+
+def _imports(path: Path) -> set[str]:
+    """Every module named by an import anywhere in the file (function-level ones too)."""
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            names.add(node.module)
+            names.update(f"{node.module}.{alias.name}" for alias in node.names)
+    return names
+
+
+def _stage(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and parts[0] == "itt_planner" else None
+
+
+MODULES = _modules()
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if _stage(m)))
+def test_imports_only_downward(module: str) -> None:
+    own = STAGES.index(_stage(module))  # type: ignore[arg-type]
+    upward = sorted(name for name in _imports(MODULES[module])
+                    if name in MODULES and _stage(name) and STAGES.index(_stage(name)) > own)
+    assert not upward, f"{module} ({STAGES[own]}) imports a later stage: {upward}"
+
+
+@pytest.mark.parametrize("module", sorted(m for m in MODULES if _stage(m) in
+                                          ("errors", "course", "model", "ocp", "live")))
+def test_core_never_imports_an_edge(module: str) -> None:
+    edges = sorted(name for name in _imports(MODULES[module])
+                   if name.split(".")[0] in EDGE_PACKAGES)
+    assert not edges, f"{module} imports an edge package: {edges}"
+
+
+def test_no_import_cycle() -> None:
+    graph = {m: {n for n in _imports(p) if n in MODULES and n != m and not
+                 (m.startswith(n + ".") and MODULES[n].name == "__init__.py")}
+             for m, p in MODULES.items()}
+    # A package's __init__ re-exports its modules: an edge into it stands for them.
+    state: dict[str, int] = {}
+
+    def visit(node: str, trail: list[str]) -> None:
+        state[node] = 1
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == 1:
+                raise AssertionError("import cycle: " + " -> ".join([*trail, node, nxt]))
+            if nxt not in state:
+                visit(nxt, [*trail, node])
+        state[node] = 2
+
+    for module in sorted(graph):
+        if module not in state:
+            visit(module, [])
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_module_is_small_and_says_what_it_is_for(module: str) -> None:
+    source = MODULES[module].read_text()
+    lines = source.count("\n")
+    assert lines <= MAX_LINES, f"{module}: {lines} lines (limit {MAX_LINES})"
+    docstring = ast.get_docstring(ast.parse(source))
+    assert docstring and docstring.strip(), f"{module}: no module docstring"
