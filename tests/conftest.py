@@ -8,9 +8,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from real_data import data_path
+from support.real_data import data_path
 
 from itt_msgs_py.dds_env import CONFLICTING_VARS, localhost_env, ros_unavailable_reason
+
+#: The hairpin course and its 3D plan (`course`, `plan`) for the closed-loop tests.
+pytest_plugins = ["support.hairpin_fixtures"]
 
 
 @pytest.fixture(scope="session")

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from real_data import COURSES, RIDES, data_path
+from support.real_data import COURSES, RIDES, data_path
 from typer.testing import CliRunner
 
 from itt_planner.cli import app

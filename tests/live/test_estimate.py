@@ -1,0 +1,253 @@
+"""State estimation: map matching, dead reckoning through dropouts, W' balance, bad inputs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from itt_planner.course.fit import fit_course
+from itt_planner.course.track_files import read_recording
+from itt_planner.live.estimate import StateEstimator
+from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
+from itt_planner.model.rider import PRESETS
+from itt_planner.sim.simulate import SensorSettings, hairpin_course, sensor_samples
+
+RIDER = PRESETS["paper"]
+
+
+@pytest.fixture(scope="module")
+def course():
+    return hairpin_course()
+
+
+def _truth(course, seed: int = 0):
+    """A rider whose speed varies 8-14 m/s and who wanders across the lane."""
+    t = np.arange(0.0, 400.0, 0.1)
+    v = 11.0 + 3.0 * np.sin(t / 20.0)
+    s = np.cumsum(v) * 0.1
+    keep = s < course.length_m
+    t, v, s = t[keep], v[keep], s[keep]
+    n = 1.5 * np.sin(t / 15.0 + seed)
+    return t, s, n, v, 400.0 + 50.0 * np.sin(t / 7.0)
+
+
+def _feed(est: StateEstimator, samples: list[Sample]) -> list[tuple[float, float]]:
+    """Feed samples in order; (stamp, published s) after every sample."""
+    out = []
+    for smp in samples:
+        if isinstance(smp, GpsFix):
+            est.on_gps(smp)
+        elif isinstance(smp, WheelSpeed):
+            est.on_speed(smp)
+        else:
+            est.on_power(smp)
+        state = est.state(smp.stamp_s)
+        if state is not None:
+            out.append((state.stamp_s, state.s_m))
+    return out
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_simulated_ride_with_dropout_and_outliers(course, seed):
+    t, s, n, v, p = _truth(course)
+    drop_start, drop_len = 100.0, 60.0
+    sensors = SensorSettings(dropouts=((drop_start, drop_len),), outliers=(30.0, 50.0, 200.0))
+    samples = sensor_samples(course, t, s, n, v, p, np.random.default_rng(seed), sensors)
+    est = StateEstimator(course, RIDER)
+    track = np.array(_feed(est, samples))
+    err = track[:, 1] - np.interp(track[:, 0], t, s)
+    assert np.median(np.abs(err)) <= 10.0
+    after = (track[:, 0] >= drop_start + drop_len + 10.0)
+    assert np.abs(err[after]).max() <= 25.0
+    # Through the dropout itself, dead reckoning on wheel speed (1 % scale error) holds.
+    during = (track[:, 0] >= drop_start) & (track[:, 0] < drop_start + drop_len)
+    assert np.abs(err[during]).max() <= 25.0
+    assert np.diff(track[:, 1]).min() >= 0.0, "published s moved backwards"
+    # The three 100 m sideways jumps were rejected, nothing else was.
+    assert est.counters["gps_off_course"] + est.counters["gps_outlier"] == 3
+    assert track[-1, 1] == pytest.approx(s[-1], abs=15.0)
+
+
+def test_along_track_jump_is_gated_and_crossing_is_not_taken(course):
+    """A fix 100 m ahead ON the road passes the off-road test; the innovation gate must
+    catch it. Where the road crosses itself (s ~ 550 m and ~ 1020 m) the match stays on
+    the branch being ridden."""
+    est = StateEstimator(course, RIDER)
+    v = 12.0
+    jumped = None
+    for k in range(0, 120):
+        stamp = float(k)
+        s_true = v * k
+        est.on_speed(WheelSpeed(stamp, v))
+        s_fix = s_true + (100.0 if k == 40 else 0.0)
+        lat, lon, alt = course.to_geodetic(*course.enu_at(s_fix, 0.0))
+        accepted = est.on_gps(GpsFix(stamp, float(lat), float(lon), float(alt)))
+        if k == 40:
+            jumped = accepted
+        state = est.state(stamp)
+        assert state is not None
+        assert abs(state.s_m - s_true) < 10.0, f"at t={stamp}: {state.s_m} vs {s_true}"
+    assert jumped is False
+    assert est.counters["gps_outlier"] == 1
+
+
+def test_lost_estimator_reacquires_globally(course):
+    """Started at the wrong place (a wrong restore), the estimator rejects the first
+    fixes as outliers, then re-acquires on the whole course."""
+    est = StateEstimator(course, RIDER)
+    est.restore({"s_m": 0.0, "w_prime_j": 20000.0, "start_stamp_s": 0.0, "stamp_s": 0.0})
+    for k in range(1, 12):
+        s_true = 1800.0 + 10.0 * k
+        lat, lon, alt = course.to_geodetic(*course.enu_at(s_true, 1.0))
+        est.on_speed(WheelSpeed(float(k), 10.0))
+        est.on_gps(GpsFix(float(k), float(lat), float(lon), float(alt)))
+    assert est.counters["gps_reacquired"] == 1
+    state = est.state(12.0)
+    assert state is not None and state.s_m > 1000.0  # catching up, never backwards
+    for k in range(12, 60):  # converges to the truth at the bounded catch-up rate
+        s_true = 1800.0 + 10.0 * k
+        lat, lon, alt = course.to_geodetic(*course.enu_at(s_true, 1.0))
+        est.on_speed(WheelSpeed(float(k), 10.0))
+        est.on_gps(GpsFix(float(k), float(lat), float(lon), float(alt)))
+    assert est.state(59.0).s_m == pytest.approx(1800.0 + 590.0, abs=10.0)
+
+
+def test_bad_inputs_are_counted_not_raised(course):
+    est = StateEstimator(course, RIDER)
+    lat, lon, alt = (float(a) for a in course.to_geodetic(*course.enu_at(100.0, 0.0)))
+    assert est.on_gps(GpsFix(0.0, lat, lon, alt))
+    assert not est.on_power(PowerReading(0.5, math.nan))
+    assert not est.on_power(PowerReading(0.6, -5.0))
+    assert not est.on_speed(WheelSpeed(0.5, -3.0))
+    assert not est.on_speed(WheelSpeed(0.5, math.inf))
+    assert not est.on_gps(GpsFix(1.0, lat + 0.05, lon, alt))  # 5 km away
+    assert not est.on_gps(GpsFix(math.nan, lat, lon, alt))
+    assert not est.on_gps(GpsFix(2.0, 95.0, lon, alt))
+    assert est.on_speed(WheelSpeed(3.0, 10.0))
+    assert not est.on_speed(WheelSpeed(3.0, 10.0))  # duplicate stamp
+    assert not est.on_speed(WheelSpeed(2.5, 10.0))  # time going backwards
+    assert not est.on_gps(GpsFix(-10.0, lat, lon, alt))  # far behind the filter
+    c = est.counters
+    assert c["power_invalid"] == 2 and c["speed_invalid"] == 2
+    assert c["gps_off_course"] == 1 and c["gps_invalid"] == 2
+    assert c["speed_duplicate_stamp"] == 1 and c["speed_time_backwards"] == 1
+    assert c["gps_time_backwards"] == 1
+    state = est.state(3.0)
+    assert state is not None and state.s_m == pytest.approx(100.0 + 10.0 * 0.0, abs=35.0)
+    assert math.isfinite(state.w_prime_j)
+
+
+def test_wprime_balance_matches_skiba(course):
+    """E9 Skiba: 600 s at CP + 30 W depletes 18 kJ; then below CP it recovers
+    exponentially with time constant E_0 / (W_C - P)."""
+    est = StateEstimator(course, RIDER)
+    cp, e0 = RIDER.critical_power_w, RIDER.w_prime_j
+    for k in range(601):
+        est.on_power(PowerReading(float(k), cp + 30.0))
+    lat, lon, alt = (float(a) for a in course.to_geodetic(*course.enu_at(0.0, 0.0)))
+    est.on_gps(GpsFix(600.0, lat, lon, alt))
+    assert est.state(600.0).w_prime_j == pytest.approx(e0 - 30.0 * 600.0, rel=1e-6)
+    for k in range(601, 901):
+        est.on_power(PowerReading(float(k), cp - 100.0))
+    deficit = 30.0 * 600.0 * math.exp(-100.0 * 300.0 / e0)
+    assert est.state(900.0).w_prime_j == pytest.approx(e0 - deficit, rel=0.01)
+    # A power meter falling silent: its last value holds 5 s, then it counts as zero.
+    assert est.state(1000.0).power_w == 0.0
+
+
+def test_refit_critical_power_explains_a_rider_out_of_wprime(course):
+    """A rider whose true CP is 5 % below the believed one holds 500 W until empty, then
+    only CP - 10 W: the balance at the believed CP still shows W' left; the refit finds
+    the CP whose balance empties (the true one), and never raises CP."""
+    est = StateEstimator(course, RIDER)
+    cp, e0 = RIDER.critical_power_w, RIDER.w_prime_j
+    cp_true = 0.95 * cp
+    t_empty = e0 / (500.0 - cp_true)
+    for k in range(int(t_empty) + 30):
+        est.on_power(PowerReading(float(k), 500.0 if k < t_empty else cp_true - 10.0))
+    assert est.snapshot()["w_prime_j"] > 0.2 * e0  # the believed balance: far from empty
+    assert est.refit_critical_power(0.0) == pytest.approx(cp_true, abs=2.0)
+    assert est.rider.critical_power_w < cp
+    assert est.snapshot()["w_prime_j"] < 0.02 * e0
+    # A balance that already agrees leaves CP alone.
+    assert est.refit_critical_power(0.0) == pytest.approx(est.rider.critical_power_w)
+
+
+def test_snapshot_restore_keeps_wprime_and_progress(course):
+    est = StateEstimator(course, RIDER)
+    t, s, n, v, p = _truth(course)
+    samples = sensor_samples(course, t, s, n, v, p + 200.0, np.random.default_rng(0))
+    half = [x for x in samples if x.stamp_s < 100.0]
+    _feed(est, half)
+    before = est.state(99.0)
+    snap = est.snapshot()
+    fresh = StateEstimator(course, RIDER)
+    fresh.restore(snap)
+    restored = fresh.state(99.0)
+    assert restored.w_prime_j == pytest.approx(before.w_prime_j)
+    assert restored.s_m == pytest.approx(before.s_m)
+    assert restored.elapsed_s == pytest.approx(before.elapsed_s)
+    rest = np.array(_feed(fresh, [x for x in samples if x.stamp_s >= 100.0]))
+    assert np.diff(rest[:, 1]).min() >= 0.0
+    assert rest[-1, 1] == pytest.approx(s[-1], abs=15.0)
+
+
+RIDES = ["edge1000_ardennes_2019.fit", "edge810_vector_stjohns_2013.fit",
+         "elemnt_shanghai_2019_stopgo.fit", "sauerland_2025.fit",
+         "zwift_bologna_tt_virtual.tcx"]
+
+
+@pytest.mark.parametrize("name", RIDES)
+def test_real_ride_on_its_own_track(data_file, name):
+    """Every record of the real ride is fed as it was recorded (gaps, pauses, GPS jumps,
+    NaNs and power spikes included); the course is the ride's own fitted track. The
+    whole ride is used (the estimator runs at ~10 k samples/s)."""
+    rec = read_recording(data_file(f"rides/{name}"))
+    course = fit_course(rec)
+    est = StateEstimator(course, RIDER)
+    progress = []
+    for i in range(len(rec)):
+        stamp = float(rec.time_s[i])
+        est.on_gps(GpsFix(stamp, float(rec.lat_deg[i]), float(rec.lon_deg[i]),
+                          float(rec.ele_m[i])))
+        if rec.speed_mps is not None:
+            est.on_speed(WheelSpeed(stamp, float(rec.speed_mps[i])))
+        if rec.power_w is not None:
+            est.on_power(PowerReading(stamp, float(rec.power_w[i])))
+        state = est.state(stamp)
+        if state is not None:
+            progress.append(state.s_m)
+            assert 0.0 <= state.w_prime_j <= RIDER.w_prime_j + 1e-6
+    progress = np.array(progress)
+    assert np.diff(progress).min() >= 0.0
+    # The rider rode the whole track: progress reaches its end.
+    assert progress[-1] >= 0.98 * course.length_m
+    # Most fixes are on the track; the rest (GPS jumps, stretches the course fit left
+    # out of a messy track: the Shanghai stop-and-go ride keeps ~82 %) were counted.
+    assert est.counters["gps_accepted"] >= 0.8 * np.isfinite(rec.lat_deg).sum()
+
+
+def test_closed_loop_wraps_into_laps():
+    """On a closed loop the match wraps around the seam: progress is cumulative (laps),
+    and the published s stops at the finish (the course length)."""
+    from itt_planner.course.geometry import Course, GeoOrigin
+
+    u = np.linspace(0.0, 2 * np.pi, 800, endpoint=False)
+    x, y = 300.0 * np.cos(u) - 300.0, 200.0 * np.sin(u)  # an ellipse starting at (0, 0)
+    loop = Course.from_centerline("loop", np.append(x, x[0]), np.append(y, y[0]),
+                                  np.zeros(801), origin=GeoOrigin(45.0, 11.0, 0.0),
+                                  closed_loop=True)
+    est = StateEstimator(loop, RIDER)
+    v, length = 12.0, loop.length_m
+    published = []
+    for k in range(int(1.3 * length / v)):
+        s_true = (v * k) % length
+        lat, lon, alt = (float(a) for a in loop.to_geodetic(*loop.enu_at(s_true, 0.0)))
+        est.on_speed(WheelSpeed(float(k), v))
+        assert est.on_gps(GpsFix(float(k), lat, lon, alt)), f"fix {k} rejected"
+        published.append(est.state(float(k)).s_m)
+    assert np.diff(published).min() >= 0.0
+    assert published[-1] == pytest.approx(length)
+    assert est.distance_m == pytest.approx(v * (len(published) - 1), abs=10.0)

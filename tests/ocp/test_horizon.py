@@ -1,0 +1,214 @@
+"""Receding-horizon OCP: replans along hairpins, usable-rate on a technical descent, W' >= 0,
+warm starts, budget-capped iterates that are still valid advice, failures."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from support.courses import hairpin
+
+from itt_planner.course.geometry import Course
+from itt_planner.course.loader import load_course
+from itt_planner.model.conditions import GRAVITY_MPS2
+from itt_planner.model.rider import PRESETS, Rider
+from itt_planner.model.state import RiderState
+from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.horizon import (
+    SUBOPTIMAL_FEASIBLE,
+    HorizonPlanner,
+    HorizonSettings,
+    HorizonSolution,
+)
+from itt_planner.ocp.plan import Plan
+
+COURSE = hairpin(straight_m=600.0)
+
+
+@pytest.fixture(scope="module")
+def plan() -> Plan:
+    return solve_plan(COURSE, PRESETS["paper"], model="3d")
+
+
+@pytest.fixture(scope="module")
+def planner(plan: Plan) -> HorizonPlanner:
+    # A generous wall-time cap: on a loaded CI machine outcomes must depend on iterations
+    # only. Cold starts on this short hairpin need 50-90 iterations (more than the default
+    # cap, which the descent test below exercises): these tests are about warm vs cold.
+    return HorizonPlanner(COURSE, PRESETS["paper"], plan,
+                          settings=HorizonSettings(horizon_m=500.0, max_iter=150,
+                                                   max_wall_time_s=20.0))
+
+
+def plan_state(plan: Plan, s: float, course: Course = COURSE) -> RiderState:
+    return RiderState(
+        stamp_s=float(plan.at("t_s", s)), s_m=s, n_m=float(plan.at("n_m", s)),
+        speed_mps=float(plan.at("v_mps", s)),
+        heading_rad=float(course.at("theta_rad", s) + plan.at("alpha_rad", s)),
+        power_w=float(plan.at("power_w", s)), w_prime_j=float(plan.at("w_prime_j", s)),
+        elapsed_s=float(plan.at("t_s", s)))
+
+
+def test_replans_along_a_hairpin(plan: Plan, planner: HorizonPlanner) -> None:
+    planner.reset()
+    sols = [planner.solve(plan_state(plan, s)) for s in np.arange(0.0, COURSE.length_m - 20, 60.0)]
+    assert sum(s.success for s in sols) >= len(sols) - 1, [s.status for s in sols]
+    for sol in sols:
+        assert isinstance(sol, HorizonSolution)
+        if sol.success:
+            assert sol.w_prime_j.min() >= -0.01
+            assert np.all(np.diff(sol.t_s) > 0)
+            # Riding the plan's own states predicts the plan's finish.
+            assert sol.predicted_finish_s == pytest.approx(plan.finish_time_s, rel=0.02)
+
+
+def test_horizon_keeps_the_plans_speed_at_its_end(plan: Plan, planner: HorizonPlanner) -> None:
+    """The speed carried over the window's end is priced with the plan's costate, so the
+    horizon does not ease off towards its end to sell that speed (it did with a quadratic
+    pull alone: 0.45 m/s under the plan at the end, power 8-12 W over it in front)."""
+    planner.reset()
+    sol = planner.solve(plan_state(plan, 50.0))
+    assert sol.success, sol.status
+    assert sol.v_mps[-1] == pytest.approx(float(plan.at("v_mps", sol.s_m[-1])), abs=0.1)
+    last = sol.s_m >= sol.s_m[0] + 0.75 * (sol.s_m[-1] - sol.s_m[0])
+    assert np.mean(sol.power_w[last]) == pytest.approx(
+        np.mean(plan.at("power_w", sol.s_m[last])), rel=0.05)
+
+
+def verona_descent() -> Course:
+    """The technical descent of verona-like, 8.7-11.2 km: 8 turns, 4 hairpins of 10-15 m."""
+    c = load_course("verona-like")
+    i, j = int(8700 / c.ds_m), int(11200 / c.ds_m)
+    return Course.from_centerline(
+        "verona-like-descent", c.x_m[i:j], c.y_m[i:j], c.z_m[i:j], origin=c.origin,
+        width_left_m=c.width_left_m[i:j], width_right_m=c.width_right_m[i:j],
+        theta_rad=c.theta_rad[i:j], kappa_per_m=c.kappa_per_m[i:j], synthetic=True)
+
+
+def friction_use(sol: HorizonSolution, rider: Rider) -> np.ndarray:
+    """C16 recomputed from the reported profiles: a_x = P / (m v), |a_y| = g tan|phi|."""
+    g, mu = GRAVITY_MPS2, 1.0  # Conditions() default grip: mu_x = mu_y = 1
+    a_x = sol.power_w / (rider.mass_kg * sol.v_mps)
+    a_y = g * np.tan(np.abs(sol.phi_rad))
+    return (a_x / (mu * g)) ** 2 + (a_y / (mu * g)) ** 2
+
+
+def test_usable_replans_on_a_technical_descent() -> None:
+    """A realistic sweep: a 1 km replan every 50 m from perturbed plan states down hairpins.
+
+    With the default iteration budget (and a generous wall time, so that the outcome does
+    not depend on the machine's load) at least 95 % of the replans are usable, and every
+    one returned as success - budget-capped iterates included - respects the road (C11),
+    W' >= 0 (C12) and grip (C16 <= 1 + tol beyond what the measured start already uses).
+    """
+    course, rider = verona_descent(), PRESETS["typical"]
+    plan = solve_plan(course, rider, model="3d")
+    settings = HorizonSettings(max_wall_time_s=20.0)
+    planner = HorizonPlanner(course, rider, plan, settings=settings)
+    rng = np.random.default_rng(0)
+    sols = []
+    for s in np.arange(0.0, course.length_m - 20, 50.0):
+        st = plan_state(plan, s, course)
+        st = dataclasses.replace(
+            st, speed_mps=st.speed_mps * (1 + 0.03 * rng.standard_normal()),
+            n_m=st.n_m + 0.3 * rng.standard_normal(),
+            w_prime_j=max(0.0, st.w_prime_j - rng.uniform(0.0, 1500.0)))
+        sols.append(planner.solve(st))
+    assert sum(sol.success for sol in sols) >= 0.95 * len(sols), [sol.status for sol in sols]
+    for sol in (sol for sol in sols if sol.success):
+        assert sol.w_prime_j.min() >= -0.01  # C12
+        assert np.all(np.diff(sol.t_s) > 0)
+        # C11 with the margin, from the second node on (the first is the measured line).
+        assert np.all(sol.n_m[1:] <= course.at("width_left_m", sol.s_m[1:]) - 0.5 + 1e-3)
+        assert np.all(-sol.n_m[1:] <= course.at("width_right_m", sol.s_m[1:]) - 0.5 + 1e-3)
+        # Where the plan corners at the grip limit, no faster than the plan (+ tolerance)
+        # unless the rider arrived too fast to brake to it.
+        cap = planner.corner_speed_cap(sol.s_m, float(sol.v_mps[0]))
+        assert np.all(sol.v_mps <= cap + 1e-3)
+        use = friction_use(sol, rider)
+        assert use[1:].max() <= max(1.0, use[0]) + settings.grip_tol + 1e-3, sol.status
+
+
+def test_capped_iterate_returned_only_when_feasible(plan: Plan) -> None:
+    """A budget that stops IPOPT early: the iterate is advice only if it is feasible."""
+    rider = PRESETS["paper"]
+    results = []
+    for max_iter in (5, 15, 30):
+        short = HorizonPlanner(COURSE, rider, plan,
+                               settings=HorizonSettings(horizon_m=500.0, max_iter=max_iter,
+                                                        max_wall_time_s=20.0))
+        for s in (100.0, 300.0, 560.0):
+            short.reset()
+            results.append(short.solve(plan_state(plan, s)))
+    statuses = {sol.status for sol in results}
+    assert SUBOPTIMAL_FEASIBLE in statuses, statuses
+    for sol in results:
+        if sol.status == SUBOPTIMAL_FEASIBLE:
+            assert sol.success
+            assert sol.w_prime_j.min() >= 0.0
+            assert np.all(np.abs(sol.n_m[1:]) <= 4.0 - 0.5 + 1e-3)
+            use = friction_use(sol, rider)
+            assert use[1:].max() <= max(1.0, use[0]) + HorizonSettings().grip_tol + 1e-3
+        elif not sol.success:
+            assert "Maximum_Iterations_Exceeded" in sol.status
+
+
+def test_warm_start_from_previous_solution(plan: Plan, planner: HorizonPlanner) -> None:
+    """Re-solving the same window from the previous solution is (nearly) free."""
+    planner.reset()
+    cold = planner.solve(plan_state(plan, 100.0))
+    warm = planner.solve(plan_state(plan, 100.0))
+    assert cold.success and warm.success
+    assert warm.iterations < cold.iterations
+
+
+def test_warm_start_beats_cold_on_shifted_windows(plan: Plan, planner: HorizonPlanner) -> None:
+    """A sequence of windows shifted by ~one replan period: warm needs fewer iterations."""
+    positions = np.arange(100.0, 500.0, 20.0)
+    planner.reset()
+    warm = [planner.solve(plan_state(plan, s)) for s in positions]
+    cold = []
+    for s in positions:
+        planner.reset()
+        cold.append(planner.solve(plan_state(plan, s)))
+    assert all(w.success for w in warm), [w.status for w in warm]
+    assert sum(w.iterations for w in warm[1:]) < sum(c.iterations for c in cold[1:])
+
+
+def test_off_plan_state_keeps_w_prime_non_negative(plan: Plan) -> None:
+    # A cold start with W' nearly empty while surging needs ~120-140 iterations
+    # (bench/RESULTS.md): this test gives it the iterations, not the default cap.
+    deep = HorizonPlanner(COURSE, PRESETS["paper"], plan,
+                          settings=HorizonSettings(horizon_m=500.0, max_iter=300,
+                                                   max_wall_time_s=20.0))
+    low = dataclasses.replace(plan_state(plan, 200.0), w_prime_j=300.0, power_w=900.0)
+    sol = deep.solve(low)
+    assert sol.success, sol.status
+    assert sol.w_prime_j.min() >= -0.01
+
+
+def test_failure_returns_status_not_exception(plan: Plan) -> None:
+    tight = HorizonPlanner(COURSE, PRESETS["paper"], plan,
+                           settings=HorizonSettings(horizon_m=500.0, max_iter=1))
+    bad = dataclasses.replace(plan_state(plan, 550.0), speed_mps=25.0, n_m=-3.0, power_w=1800.0)
+    sol = tight.solve(bad)
+    assert not sol.success
+    assert sol.status
+    garbage = dataclasses.replace(plan_state(plan, 10.0), speed_mps=float("nan"),
+                                  power_w=float("nan"))
+    assert isinstance(tight.solve(garbage), HorizonSolution)
+
+
+def test_horizon_respects_the_riders_cornering_limit() -> None:
+    """The rider's lateral limit (issue 14 item 4) holds in the horizon as in the plan."""
+    timid = Rider(name="timid", max_lateral_accel_mps2=4.0)
+    plan = solve_plan(COURSE, timid, model="3d")
+    # A cold first replan, generous budget: the outcome must not depend on the load.
+    planner = HorizonPlanner(COURSE, timid, plan,
+                             settings=HorizonSettings(max_iter=150, max_wall_time_s=20.0))
+    apex = COURSE.corners[0].apex_s_m
+    sol = planner.solve(plan_state(plan, max(apex - 150.0, 0.0), COURSE))
+    assert sol.success, sol.status
+    a_y = GRAVITY_MPS2 * np.tan(np.abs(sol.phi_rad[1:]))
+    assert a_y.max() <= 4.0 + 0.05 * 9.81  # the soft C16's grip_tol

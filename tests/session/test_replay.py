@@ -1,0 +1,230 @@
+"""The embedded replay: a whole ride through the pacing engine, deterministic, nothing lost."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from support.mcap_readers import check_all_readers, rerun_value
+from typer.testing import CliRunner
+
+from itt_planner.cli import app
+from itt_planner.live.engine import ON_PLAN, EngineSettings, PacingEngine
+from itt_planner.logs.ridelog import RawRecord, RideLogReader, RideLogWriter, RideMetadata
+from itt_planner.model.conditions import Conditions
+from itt_planner.model.rider import PRESETS
+from itt_planner.ocp.cache import load_or_solve
+from itt_planner.ocp.course_problem import OcpSettings
+from itt_planner.ocp.horizon import HorizonPlanner, HorizonSettings
+from itt_planner.session import replay as replay_mod
+from itt_planner.session import ride_session as session_mod
+from itt_planner.session.replay import ReplaySettings, parse_speed, replay
+from itt_planner.session.ride_session import RideSession, SessionConfig
+from itt_planner.sim.simulate import hairpin_course, sensor_samples
+
+T0 = 1_779_000_000.0
+REPLAN_S = 10.0  # few solves keep the tests short; the benchmark replans at 1 Hz
+HORIZON_M = 500.0
+INPUTS = ("/itt/gps/fix", "/itt/speed", "/itt/power")
+OUTPUTS = {"/itt/advice": "itt_msgs/msg/Advice", "/itt/target_power": "itt_msgs/msg/TargetPower",
+           "/itt/target_line": "nav_msgs/msg/Path"}
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory: pytest.TempPathFactory) -> dict:
+    """The hairpin test course, the typical rider's plan, and a simulated ride log of it."""
+    tmp = tmp_path_factory.mktemp("replay")
+    course = hairpin_course()
+    rider = PRESETS["typical"]
+    plan = load_or_solve(course, rider, Conditions(), OcpSettings(), "1d", cache_dir=tmp)
+    samples = sensor_samples(course, plan.t_s, plan.s_m, plan.n_m, plan.v_mps, plan.power_w,
+                             np.random.default_rng(3), t0_s=T0)
+    log = tmp / "ride.mcap"
+    with RideLogWriter(log, metadata=RideMetadata(source="simulated", rider="typical")) as w:
+        for sample in samples:
+            w.write_sample(sample)
+    # Built once (compiles CasADi Functions); no wall-time cap, as `replay_ride` does
+    # for a deterministic replay.
+    planner = HorizonPlanner(course, rider, plan, settings=HorizonSettings(
+        horizon_m=HORIZON_M, max_wall_time_s=session_mod.NO_WALL_TIME_LIMIT_S))
+    return {"course": course, "rider": rider, "plan": plan, "log": log, "tmp": tmp,
+            "n_in": len(samples), "planner": planner}
+
+
+def session_for(setup: dict, output: Path | None = None,
+                recorder: object | None = None) -> RideSession:
+    """A session on a fresh engine; the shared planner forgets its warm start from the
+    last replay."""
+    setup["planner"].reset()
+    engine = PacingEngine(setup["course"], setup["rider"], setup["plan"],
+                          planner=setup["planner"],
+                          settings=EngineSettings(replan_period_s=REPLAN_S,
+                                                  horizon_m=HORIZON_M, deterministic=True))
+    writer = RideLogWriter(output) if output is not None else None
+    return RideSession(SessionConfig(replan_period_s=REPLAN_S, horizon_m=HORIZON_M,
+                                     deterministic=True),
+                       engine, writer=writer, recorder=recorder)
+
+
+@pytest.fixture(scope="module")
+def two_runs(setup: dict) -> list[tuple[replay_mod.ReplayResult, Path]]:
+    runs = []
+    for i in range(2):
+        out = setup["tmp"] / f"advice{i}.mcap"
+        runs.append((replay(setup["log"], session_for(setup, out)), out))
+    return runs
+
+
+def payloads(path: Path, topic: str) -> list[bytes]:
+    with path.open("rb") as f:
+        return [m.data for _, c, m in make_reader(f).iter_messages(topics=[topic])]
+
+
+def test_advice_for_the_whole_ride(setup: dict, two_runs: list) -> None:
+    result, out = two_runs[0]
+    assert result.errors == [] and result.messages_in == setup["n_in"]
+    duration = setup["plan"].finish_time_s
+    assert result.ride_duration_s == pytest.approx(duration, abs=2.0)
+    assert result.advice_out >= 0.9 * duration / REPLAN_S
+    advice = [v for t, _, v in RideLogReader(out) if t == "/itt/advice"]
+    assert len(advice) == result.advice_out
+    # Advice until the end: the last one within a replan period of the last input.
+    last_in = max(s for t, s, _ in RideLogReader(out) if t in INPUTS)
+    assert advice[-1].stamp_s > last_in - REPLAN_S
+    assert advice[-1].state.s_m > setup["course"].length_m - 20 * REPLAN_S
+    # Planner quality is tested with the planner; here: good advice (the plan while the
+    # rider is on it, solved replans otherwise) reaches the output.
+    assert any(not a.fallback and a.solver_status in ("Solve_Succeeded", ON_PLAN)
+               for a in advice)
+    assert all(a.solve_time_s == 0.0 for a in advice)  # deterministic mode
+    powers = np.array([a.target_power_w for a in advice if a.solver_status != "finished"])
+    assert np.all(np.isfinite(powers)) and 100 < np.median(powers) < 600
+
+
+def test_output_holds_every_input_and_output_message(setup: dict, two_runs: list,
+                                                     tmp_path: Path) -> None:
+    result, out = two_runs[0]
+    for topic in INPUTS:  # copied byte for byte
+        assert payloads(out, topic) == payloads(setup["log"], topic)
+    n = result.advice_out
+    n_diag = result.topics_out["/diagnostics"]
+    # The replay's timer: one advice per replan period, diagnostics once a second.
+    assert n == pytest.approx(result.ride_duration_s / REPLAN_S, abs=1.5)
+    assert n_diag == pytest.approx(result.ride_duration_s, abs=1.5)
+    expected = {t: (ty, n) for t, ty in OUTPUTS.items()}
+    expected["/diagnostics"] = ("diagnostic_msgs/msg/DiagnosticArray", n_diag)
+    in_types = {"/itt/gps/fix": "sensor_msgs/msg/NavSatFix",
+                "/itt/speed": "geometry_msgs/msg/TwistStamped",
+                "/itt/power": "itt_msgs/msg/PowerStamped"}
+    for t in INPUTS:
+        expected[t] = (in_types[t], len(payloads(setup["log"], t)))
+    assert result.topics_out == {t: c for t, (_, c) in expected.items()}
+    got = check_all_readers(out, expected, tmp_path)
+    ours = [v for t, _, v in RideLogReader(out) if t == "/itt/advice"]
+    k = len(ours) // 2
+    assert got["rosbags"]["/itt/advice"][k].target_power_w == ours[k].target_power_w
+    assert got["mcap_ros2"]["/itt/target_power"][k].power_w == ours[k].target_power_w
+    line = rerun_value(got["rerun"]["/itt/target_line"][k])
+    assert [p["pose"]["position"]["x"] for p in line["poses"]] == pytest.approx(ours[k].line_x_m)
+    times = [r.log_time_ns for r in RideLogReader(out).records()]
+    assert times == sorted(times)  # written in stamp order, advice after its inputs
+    with out.open("rb") as f:
+        meta = {m.name: m.metadata for m in make_reader(f).iter_metadata()}
+    assert meta["itt_ride"]["source"] == "simulated"
+
+
+def test_replay_is_deterministic(two_runs: list) -> None:
+    (a, out_a), (b, out_b) = two_runs
+    assert a.advice_out == b.advice_out
+    for topic in ("/itt/advice", "/itt/target_power", "/itt/target_line"):
+        assert payloads(out_a, topic) == payloads(out_b, topic)
+
+
+def test_damaged_input_replays_everything_before_the_damage(setup: dict,
+                                                             tmp_path: Path) -> None:
+    # An unknown topic rides along: copied to the output, skipped by the engine.
+    extra = tmp_path / "extra.mcap"
+    with RideLogWriter(extra) as w:
+        for raw in RideLogReader(setup["log"]).records():
+            w.write_raw(raw)
+            if raw.topic == "/itt/power":
+                w.write_raw(RawRecord("/rosout", "std_msgs/msg/String", "ros2msg",
+                                      b"string data\n", "cdr", raw.log_time_ns,
+                                      raw.log_time_ns, b"\x00\x01\x00\x00\x01\x00\x00\x00\x00"))
+    cut_extra = tmp_path / "cut_extra.mcap"
+    cut_extra.write_bytes(extra.read_bytes()[: int(extra.stat().st_size * 0.6)])
+    out = tmp_path / "out.mcap"
+    result = replay(cut_extra, session_for(setup, out))
+    assert len(result.errors) == 1 and "cut_extra.mcap: truncated" in result.errors[0]
+    assert any("unknown topic /rosout" in w for w in result.warnings)
+    reader = RideLogReader(out)
+    read = list(reader)
+    assert reader.errors == []  # the output itself is whole
+    n_in = sum(1 for t, _, _ in read if t in INPUTS)
+    assert n_in == result.messages_in - reader.skipped["/rosout"] > 0.4 * setup["n_in"]
+    advice = [v for t, _, v in read if t == "/itt/advice"]
+    assert len(advice) == result.advice_out >= 0.5 * setup["plan"].finish_time_s / REPLAN_S
+    last_in = max(s for t, s, _ in read if t in INPUTS)
+    assert advice[-1].stamp_s == pytest.approx(last_in, abs=REPLAN_S)
+
+
+def test_rerun_recording(setup: dict, tmp_path: Path) -> None:
+    from rerun.chunk import RrdReader
+
+    from itt_planner.view.rerun_log import RideRecorder
+    from itt_planner.view.rerun_sink import RerunSink, open_recording
+
+    rrd = tmp_path / "review.rrd"
+    rec = open_recording(RerunSink("file", str(rrd)))
+    recorder = RideRecorder(rec, setup["course"], setup["rider"], setup["plan"])
+    recorder.log_course()
+    data = setup["log"].read_bytes()
+    short = tmp_path / "short.mcap"
+    short.write_bytes(data[: len(data) // 4])
+    result = replay(short, session_for(setup, recorder=recorder))  # flushes and disconnects
+    assert result.advice_out >= 3
+    entities = {c.entity_path for c in RrdReader(rrd).store().stream()}
+    assert len(entities) > 5
+
+
+def test_speed_paces_by_the_stamps(monkeypatch: pytest.MonkeyPatch) -> None:
+    clock = [100.0]
+    sleeps: list[float] = []
+    monkeypatch.setattr(replay_mod.time, "perf_counter", lambda: clock[0])
+
+    def sleep(seconds: float) -> None:
+        sleeps.append(seconds)
+        clock[0] += seconds
+
+    monkeypatch.setattr(replay_mod.time, "sleep", sleep)
+    pacer = replay_mod._Pacer(10.0)
+    for stamp in (T0, T0 + 1.0, T0 + 3.0):
+        pacer.wait(stamp)
+        clock[0] += 0.01  # work per message
+    assert sleeps == pytest.approx([0.09, 0.19])
+    assert parse_speed("max") is None and parse_speed("10") == 10.0
+    with pytest.raises(ValueError, match="positive"):
+        parse_speed("-1")
+    with pytest.raises(ValueError, match="> 0"):
+        ReplaySettings(speed=0.0)
+
+
+def test_cli_replay_json(setup: dict, tmp_path: Path) -> None:
+    data = setup["log"].read_bytes()
+    short = tmp_path / "short.mcap"
+    short.write_bytes(data[: len(data) // 5])  # a cut log: reported, still replayed
+    course = tmp_path / "hairpin.course.npz"
+    setup["course"].save(course)
+    result = CliRunner().invoke(app, [
+        "replay", str(short), "--course", str(course), "--rider", "typical", "--model", "1d",
+        "--out", str(tmp_path / "a.mcap"), "--replan-period", str(REPLAN_S),
+        "--horizon-m", str(HORIZON_M), "--cache-dir", str(setup["tmp"]), "--json"])
+    assert result.exit_code == 1, result.output  # exit 1: the input was damaged
+    data = json.loads(result.stdout)
+    assert {"messages_in", "advice_out", "ride_duration_s", "wall_time_s", "realtime_factor",
+            "output", "rrd", "warnings", "errors"} <= set(data)
+    assert data["advice_out"] >= 2 and data["errors"] and data["rrd"] is None
+    assert Path(data["output"]).is_file()

@@ -1,0 +1,23 @@
+"""Small synthetic courses for the OCP tests: a hairpin and a straight."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from itt_planner.course.geometry import Course, GeoOrigin
+
+
+def hairpin(straight_m: float = 300.0, radius_m: float = 12.0, width_m: float = 4.0) -> Course:
+    """A straight, a 180 deg hairpin of `radius_m`, a straight back (flat)."""
+    a = np.arange(0.0, straight_m, 1.0)
+    th = np.linspace(-np.pi / 2, np.pi / 2, int(np.pi * radius_m) + 1)[1:]
+    b = np.arange(1.0, straight_m, 1.0)
+    x = np.concatenate([a, straight_m + radius_m * np.cos(th), straight_m - b])
+    y = np.concatenate([0 * a, radius_m + radius_m * np.sin(th), np.full_like(b, 2 * radius_m)])
+    return Course.from_centerline("hairpin", x, y, np.zeros_like(x), origin=GeoOrigin(45, 11, 0),
+                                  width_left_m=width_m, width_right_m=width_m, synthetic=True)
+
+
+def straight(length_m: float = 1500.0) -> Course:
+    x = np.arange(0.0, length_m, 1.0)
+    return Course.from_centerline("straight", x, 0 * x, 0 * x, origin=GeoOrigin(45, 11, 0))

@@ -1,0 +1,33 @@
+"""Fixtures of the closed-loop tests: the hairpin test course and its 3D plan.
+
+Registered for every test by the root conftest (`pytest_plugins`); the plan
+is solved once per test run and cached in pytest's cache directory. It is solved for
+`PLAN_CONDITIONS`, the lateral grip the virtual rider uses (`simulate.planning_conditions`),
+so that in `nominal` the planner's belief equals the simulated truth; planners built in
+the tests take the same conditions.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from itt_planner.model.conditions import Conditions
+from itt_planner.model.rider import PRESETS
+from itt_planner.ocp.cache import load_or_solve
+from itt_planner.ocp.course_problem import OcpSettings
+from itt_planner.sim.simulate import hairpin_course, planning_conditions
+
+RIDER = PRESETS["paper"]
+#: What the planner believes: dry road, still air, the rider's lateral grip.
+PLAN_CONDITIONS = planning_conditions(Conditions())
+
+
+@pytest.fixture(scope="module")
+def course():
+    return hairpin_course()
+
+
+@pytest.fixture(scope="module")
+def plan(course, request):
+    return load_or_solve(course, RIDER, PLAN_CONDITIONS, OcpSettings(), "3d",
+                         cache_dir=request.config.cache.mkdir("itt_plans"))

@@ -1,0 +1,214 @@
+"""The static report: HTML with embedded figures, PNG, and the `report` command.
+
+Plans use the synthetic course; rides replay the demo bag (replanned every 20 s of ride
+time against the 1D plan, solved into a temporary cache, to keep the module quick).
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+from support.synthetic_ride import RIDER, make_course, make_plan
+from typer.testing import CliRunner
+
+from itt_planner.cli import app
+from itt_planner.course.geometry import Course
+from itt_planner.errors import IttError
+from itt_planner.live.advice import Cue
+from itt_planner.logs.ridelog import read_ride_log
+from itt_planner.ocp.plan import Plan
+from itt_planner.session.replay import replay_ride
+from itt_planner.session.ride_session import SessionConfig
+from itt_planner.view.report import render_html, rider_from_plan, summary, write_report
+from itt_planner.view.ride_report import belief_events, load_ride_trace
+
+DEMO_BAG = Path(__file__).parents[1] / "bags" / "typical_verona-like.mcap"
+
+
+@pytest.fixture(scope="module")
+def course() -> Course:
+    return make_course()
+
+
+@pytest.fixture(scope="module")
+def plan(course: Course) -> Plan:
+    return make_plan(course)
+
+
+def embedded_images(page: str) -> list[Image.Image]:
+    found = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
+    return [Image.open(io.BytesIO(base64.b64decode(b))) for b in found]
+
+
+def test_html_is_self_contained_with_overview_and_corner(plan: Plan, course: Course) -> None:
+    page = render_html(plan, course, RIDER)
+    assert page.startswith("<!DOCTYPE html>") and "http" not in page  # nothing to fetch
+    images = embedded_images(page)
+    assert len(images) == 1 + len(course.corners)  # overview + the one corner
+    for image in images:
+        pixels = np.asarray(image.convert("L"), dtype=float)
+        assert pixels.std() > 10  # figures, not blank canvases
+    assert "critical power w" in page and "440" in page
+
+
+def test_summary_figures(plan: Plan, course: Course) -> None:
+    table = summary(plan, course, RIDER)
+    assert table["finish_time_s"] == pytest.approx(plan.finish_time_s, abs=0.01)
+    assert table["average_speed_kmh"] == pytest.approx(course.length_m / plan.finish_time_s * 3.6,
+                                                       abs=0.01)
+    # Time-weighted average power lies between the plan's extremes.
+    assert plan.power_w.min() < table["average_power_w"] < plan.power_w.max()
+    assert 20 < table["max_lean_deg"] < 45
+
+
+def test_png_report(plan: Plan, course: Course, tmp_path: Path) -> None:
+    out = write_report(plan, course, tmp_path / "r.png", RIDER)
+    image = Image.open(out)
+    assert image.format == "PNG" and image.height > image.width  # overview above the corner
+
+
+def test_report_rejects_wrong_course_and_suffix(plan: Plan, course: Course,
+                                                tmp_path: Path) -> None:
+    short = Course.from_centerline("short", np.linspace(0, 200, 201), np.zeros(201),
+                                   np.zeros(201), origin=course.origin)
+    with pytest.raises(IttError, match="wrong --course"):
+        write_report(plan, short, tmp_path / "r.html")
+    with pytest.raises(IttError, match=r"\.html or \.png"):
+        write_report(plan, course, tmp_path / "r.pdf")
+
+
+def test_rider_from_plan_header(plan: Plan) -> None:
+    assert rider_from_plan(plan) is None  # the synthetic header names the rider only
+    solved = Plan(**{**plan.__dict__, "meta": {"rider": RIDER.__dict__}})
+    assert rider_from_plan(solved) == RIDER
+
+
+def test_cli_report_html_json(plan: Plan, course: Course, tmp_path: Path) -> None:
+    plan_path = plan.save(tmp_path / "p.plan.npz")
+    course_path = course.save(tmp_path / "c.course.npz")
+    out = tmp_path / "report.html"
+    result = CliRunner().invoke(app, ["report", str(plan_path), "-o", str(out),
+                                      "--course", str(course_path), "--json"])
+    assert result.exit_code == 0, result.output
+    payload = json.loads(result.stdout)
+    assert payload["output"] == str(out) and payload["corners"] == 1
+    assert len(embedded_images(out.read_text())) == 2
+
+
+def test_cli_report_errors(plan: Plan, tmp_path: Path) -> None:
+    plan_path = plan.save(tmp_path / "p.plan.npz")
+    runner = CliRunner()
+    # The plan names course 'synthetic-corner', which no loader knows.
+    result = runner.invoke(app, ["report", str(plan_path), "-o", str(tmp_path / "r.html"),
+                                 "--json"])
+    assert result.exit_code == 1
+    assert "synthetic-corner" in json.loads(result.stdout)["error"]
+
+
+def test_demo_course_named_in_plan_header(tmp_path: Path) -> None:
+    """A plan on the verona-like demo: the course is found from the plan's header."""
+    from itt_planner.course.loader import load_course  # noqa: PLC0415
+
+    demo = load_course("verona-like")
+    plan = make_plan(demo, ds_m=10.0)
+    plan = Plan(**{**plan.__dict__, "meta": {"course": "verona-like"}})
+    plan_path = plan.save(tmp_path / "v.plan.npz")
+    out = tmp_path / "v.png"
+    result = CliRunner().invoke(app, ["report", str(plan_path), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "verona-like" in result.stdout and Image.open(out).format == "PNG"
+
+
+@pytest.fixture(scope="module")
+def replayed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, float]:
+    """(replay output, plan cache, ride duration) of the typical rider's demo bag."""
+    tmp = tmp_path_factory.mktemp("ride")
+    out, cache = tmp / "replayed.mcap", tmp / "cache"
+    config = SessionConfig(course="verona-like", rider="typical", model="1d",
+                           replan_period_s=20.0, plan_cache=str(cache), deterministic=True)
+    result = replay_ride(DEMO_BAG, config, output=out)
+    assert result.errors == [] and result.advice_out > 50
+    return out, cache, result.ride_duration_s
+
+
+def test_ride_report_html_compares_the_ride_with_the_plan(replayed: tuple, tmp_path: Path
+                                                          ) -> None:
+    log, cache, duration_s = replayed
+    out = tmp_path / "ride.html"
+    result = CliRunner().invoke(app, ["report", str(log), "-o", str(out), "--cache-dir",
+                                      str(cache), "--json"])
+    assert result.exit_code == 0, result.output
+    table = json.loads(result.stdout)
+    # Course, rider and model come from the replay's metadata.
+    assert (table["course"], table["rider"], table["model"]) == ("verona-like", "typical", "1d")
+    power = [p.power_w for topic, _, p in read_ride_log(log) if topic == "/itt/power"]
+    assert table["average_power_w"] == pytest.approx(np.mean(power), abs=1.0)
+    assert table["max_power_w"] == pytest.approx(max(power), abs=0.1)
+    # The simulated rider stops logging at the finish line.
+    assert table["finish_time_s"] == pytest.approx(duration_s, abs=5.0)
+    assert table["finish_vs_plan_s"] == pytest.approx(
+        table["finish_time_s"] - table["plan_finish_time_s"], abs=0.02)
+    advice = [a for topic, _, a in read_ride_log(log) if topic == "/itt/advice"]
+    assert table["advice"] == len(advice)
+    assert table["fallbacks"] == sum(a.fallback for a in advice)
+    assert sum(table["solver_status"].values()) == len(advice)
+    page = out.read_text()
+    assert "ride report" in page and "fallbacks" in page
+    assert not re.search(r"(src|href)=[\"']?https?:", page)  # nothing to fetch
+    images = embedded_images(page)
+    assert len(images) == 1 + 3  # the ride overview + three corners with the GPS fixes
+    for image in images:
+        assert np.asarray(image.convert("L"), dtype=float).std() > 10
+
+
+def test_ride_trace_places_samples_by_distance(replayed: tuple) -> None:
+    trace = load_ride_trace(replayed[0])
+    assert trace.duration_s == pytest.approx(replayed[2])
+    # Distance never runs backwards in time and covers the course (16.8 km).
+    assert np.all(np.diff(trace.power_s_m) >= 0) and trace.power_s_m[-1] > 16_700
+    assert len(trace.power_w) == len(trace.power_s_m) == len(trace.gps_s_m)
+    assert trace.metadata["input"] == str(DEMO_BAG)
+    # What the engine planned with comes from the advice: the typical rider's CP (no
+    # refit on this nominal ride) and the first plan, cues pedal / coast / brake / climb.
+    n = len(trace.advice_t_s)
+    assert trace.cp_in_use_w.shape == trace.plan_version.shape == trace.cue.shape == (n,)
+    events = belief_events(trace)
+    assert sum(e.kind == "refit" for e in events) == int(np.sum(np.diff(trace.cp_in_use_w) != 0))
+    assert sum(e.kind == "plan" for e in events) == int(np.sum(np.diff(trace.plan_version) != 0))
+    assert set(np.unique(trace.cue)) <= {int(c) for c in Cue}
+
+
+def test_ride_report_png(replayed: tuple, tmp_path: Path) -> None:
+    log, cache, _ = replayed
+    out = tmp_path / "ride.png"
+    result = CliRunner().invoke(app, ["report", str(log), "-o", str(out), "--cache-dir",
+                                      str(cache)])
+    assert result.exit_code == 0, result.output
+    assert "fallbacks" in result.stdout
+    image = Image.open(out)
+    assert image.format == "PNG" and image.height > image.width
+
+
+def test_raw_and_bad_logs_are_refused_by_name(tmp_path: Path) -> None:
+    runner = CliRunner()
+    out = str(tmp_path / "r.html")
+    # A raw input log (no advice): it must be replayed first.
+    result = runner.invoke(app, ["report", str(DEMO_BAG), "-o", out, "--json"])
+    assert result.exit_code == 1 and isinstance(result.exception, SystemExit)
+    error = json.loads(result.stdout)["error"]
+    assert str(DEMO_BAG) in error and "itt-planner replay" in error
+    with pytest.raises(IttError, match="no advice"):
+        load_ride_trace(DEMO_BAG)
+    # Not an MCAP file at all.
+    bogus = tmp_path / "ride.mcap"
+    bogus.write_text("not a log")
+    result = runner.invoke(app, ["report", str(bogus), "-o", out])
+    assert result.exit_code == 1 and str(bogus) in result.output
+    assert "Traceback" not in result.output
