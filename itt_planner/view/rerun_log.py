@@ -50,12 +50,17 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import rerun as rr
 
-from itt_planner.live.advice import Advice, Cue, Diagnostic, Level
 from itt_planner.course.geometry import Course
+from itt_planner.live.advice import Advice, Cue, Diagnostic, Level
+from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
+from itt_planner.model.rider import Rider
+from itt_planner.model.state import RiderState
 from itt_planner.ocp.plan import Plan
 from itt_planner.view.rerun_blueprint import (
     DISTANCE_TIMELINE,
@@ -63,9 +68,6 @@ from itt_planner.view.rerun_blueprint import (
     default_blueprint,
     fit_map_zoom,
 )
-from itt_planner.model.rider import Rider
-from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.model.state import RiderState
 
 #: Stamps from this value on are POSIX seconds (after 2001-09-09), below: a relative clock.
 POSIX_MIN_S = 1.0e9
@@ -179,8 +181,10 @@ class RideRecorder:
         self._belief: tuple[float, int] | None = None
         self._plan_version = 0
         self._diag_seen: dict[str, tuple[Level, str]] = {}
-        #: Inputs not plotted because they were not finite.
+        #: Inputs not plotted because they were not finite or have no view.
         self.skipped_inputs = 0
+        #: Sample types without a view already noted in log/inputs.
+        self._unviewed: set[type] = set()
 
     # ---- time ---------------------------------------------------------------------------
     def _set_time(self, stamp_s: float, s_m: float | None) -> bool:
@@ -307,40 +311,67 @@ class RideRecorder:
                                               level=rr.TextLogLevel.WARN))
         return True
 
-    def log_gps(self, fix: GpsFix, state: RiderState | None = None) -> None:
-        """A raw GPS fix on the map; `state` (the estimate after it) places it on distance_m."""
+    def log_sample(self, sample: Sample, state: RiderState | None = None) -> None:
+        """One input sample, drawn by the view `_SAMPLE_VIEWS` holds for its type.
+
+        `state` is the estimate after the sample: it places a GPS fix on distance_m (the
+        other samples stay at the position of the last state). A sample type without a
+        view is counted in `skipped_inputs` and noted once in log/inputs.
+        """
         if not self.enabled:
             return
+        view = _SAMPLE_VIEWS.get(type(sample))
         with self._lock:
-            if state is not None and math.isfinite(state.s_m):
-                self._s_m = state.s_m
-            if (self._bad_input(fix.stamp_s, "gps latitude", fix.lat_deg)
-                    or self._bad_input(fix.stamp_s, "gps longitude", fix.lon_deg)):
-                return
-            point = (fix.lat_deg, fix.lon_deg)
-            self.rec.log("map/gps", rr.GeoPoints(lat_lon=[point], colors=_ORANGE,
-                                                 radii=rr.components.Radius.ui_points(4.0)))
-            segment = self._track.add(point)
-            self.rec.log(f"map/track/seg_{self._track.index:04d}", rr.GeoLineStrings(
-                lat_lon=[segment], colors=_ORANGE, radii=rr.components.Radius.ui_points(2.0)))
+            if view is not None:
+                view(self, sample, state)
+            else:
+                self.skipped_inputs += 1
+                if type(sample) not in self._unviewed and self._set_time(sample.stamp_s,
+                                                                         self._s_m):
+                    self._unviewed.add(type(sample))
+                    self.rec.log("log/inputs", rr.TextLog(
+                        f"{type(sample).__name__}: no view for this sample type, not drawn",
+                        level=rr.TextLogLevel.WARN))
+
+    # Until the session calls log_sample (issue 16, helper H1): the old entry points.
+    def log_gps(self, fix: GpsFix, state: RiderState | None = None) -> None:
+        """Deprecated by `log_sample`; removed once the session calls it."""
+        self.log_sample(fix, state)
 
     def log_speed(self, sample: WheelSpeed) -> None:
-        """Wheel speed (actual), in km/h."""
-        if not self.enabled:
-            return
-        with self._lock:
-            if self._bad_input(sample.stamp_s, "wheel speed", sample.speed_mps):
-                return
-            self.rec.log("plots/speed_kmh/actual", rr.Scalars(sample.speed_mps * MPS_TO_KMH))
+        """Deprecated by `log_sample`; removed once the session calls it."""
+        self.log_sample(sample)
 
     def log_power(self, sample: PowerReading) -> None:
-        """Pedal power (actual), in W."""
-        if not self.enabled:
+        """Deprecated by `log_sample`; removed once the session calls it."""
+        self.log_sample(sample)
+
+    # The sample views: called with the lock held, `state` as given to log_sample.
+    def _view_gps(self, fix: GpsFix, state: RiderState | None) -> None:
+        """A raw GPS fix on the map and on the track."""
+        if state is not None and math.isfinite(state.s_m):
+            self._s_m = state.s_m
+        if (self._bad_input(fix.stamp_s, "gps latitude", fix.lat_deg)
+                or self._bad_input(fix.stamp_s, "gps longitude", fix.lon_deg)):
             return
-        with self._lock:
-            if self._bad_input(sample.stamp_s, "power", sample.power_w):
-                return
-            self.rec.log("plots/power/actual", rr.Scalars(sample.power_w))
+        point = (fix.lat_deg, fix.lon_deg)
+        self.rec.log("map/gps", rr.GeoPoints(lat_lon=[point], colors=_ORANGE,
+                                             radii=rr.components.Radius.ui_points(4.0)))
+        segment = self._track.add(point)
+        self.rec.log(f"map/track/seg_{self._track.index:04d}", rr.GeoLineStrings(
+            lat_lon=[segment], colors=_ORANGE, radii=rr.components.Radius.ui_points(2.0)))
+
+    def _view_speed(self, sample: WheelSpeed, _state: RiderState | None) -> None:
+        """Wheel speed (actual), in km/h."""
+        if self._bad_input(sample.stamp_s, "wheel speed", sample.speed_mps):
+            return
+        self.rec.log("plots/speed_kmh/actual", rr.Scalars(sample.speed_mps * MPS_TO_KMH))
+
+    def _view_power(self, sample: PowerReading, _state: RiderState | None) -> None:
+        """Pedal power (actual), in W."""
+        if self._bad_input(sample.stamp_s, "power", sample.power_w):
+            return
+        self.rec.log("plots/power/actual", rr.Scalars(sample.power_w))
 
     # ---- estimate and advice -----------------------------------------------------------
     def log_state(self, state: RiderState) -> None:
@@ -476,3 +507,11 @@ class RideRecorder:
                 self.rec.log("log/diagnostics", rr.TextLog(
                     f"{diag.name}{stale}: {diag.message}{values}",
                     level=_TEXT_LEVEL.get(diag.level, rr.TextLogLevel.WARN)))
+
+
+#: The view of each input sample type (a new sensor: one `_view_*` method and one entry).
+_SAMPLE_VIEWS: dict[type, Callable[[RideRecorder, Any, RiderState | None], None]] = {
+    GpsFix: RideRecorder._view_gps,
+    WheelSpeed: RideRecorder._view_speed,
+    PowerReading: RideRecorder._view_power,
+}

@@ -2,24 +2,23 @@
 
 from __future__ import annotations
 
-from itt_planner.live.advice import Advice
+from itt_planner.live.advice import Advice, Diagnostic
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.model.state import RiderState
 from itt_planner.view.rerun_log import RideRecorder
 
+Event = GpsFix | WheelSpeed | PowerReading | RiderState | Advice | list[Diagnostic]
 
-def record(recorder: RideRecorder, events: list) -> None:
-    """Feed engine-like events to the recorder, as the replay and the node do."""
+
+def record(recorder: RideRecorder, events: list[Event]) -> None:
+    """Feed engine-like events to the recorder, as the replay and the node do (samples
+    through `log_sample`, without the state after them)."""
     for ev in events:
-        if isinstance(ev, PowerReading):
-            recorder.log_power(ev)
-        elif isinstance(ev, WheelSpeed):
-            recorder.log_speed(ev)
-        elif isinstance(ev, GpsFix):
-            recorder.log_gps(ev, None)
-        elif isinstance(ev, RiderState):
+        if isinstance(ev, RiderState):
             recorder.log_state(ev)
         elif isinstance(ev, Advice):
             recorder.log_advice(ev)
-        else:
+        elif isinstance(ev, list):
             recorder.log_diagnostics(ev)
+        else:
+            recorder.log_sample(ev)

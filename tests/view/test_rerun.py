@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -31,8 +32,8 @@ def ride(tmp_path_factory: pytest.TempPathFactory) -> dict:
     recorder.log_course()
     record(recorder, events)
     # Bad inputs must be skipped and noted, not crash the ride.
-    recorder.log_power(PowerReading(T0_S + 1.0, math.nan))
-    recorder.log_speed(WheelSpeed(math.inf, 10.0))
+    recorder.log_sample(PowerReading(T0_S + 1.0, math.nan))
+    recorder.log_sample(WheelSpeed(math.inf, 10.0))
     rec.flush()
     rec.disconnect()
     reader = RrdReader(path)
@@ -109,7 +110,7 @@ def test_samples_are_placed_on_the_distance_timeline(ride: dict) -> None:
     # All but the first sample (logged before the first state at the same stamp).
     assert len(index) == len(of_type(ride["events"], PowerReading)) - 1
     assert index == sorted(index)
-    assert 0 <= index[0] and index[-1] <= ride["course"].length_m + 1
+    assert index[0] >= 0 and index[-1] <= ride["course"].length_m + 1
 
 
 def test_full_course_plan_curves_against_distance(ride: dict) -> None:
@@ -152,7 +153,7 @@ def test_state_and_w_prime(ride: dict) -> None:
     assert abs(lat - course.origin.lat_deg) < 0.01 and abs(lon - course.origin.lon_deg) < 0.01
     _, elev = scalars(store, "ride_time", "/elevation/rider")
     np.testing.assert_allclose(elev, [course.at("z_m", s.s_m) for s in states])
-    index, profile = scalars(store, "distance_m", "/elevation/profile")
+    _index, profile = scalars(store, "distance_m", "/elevation/profile")
     assert len(profile) == len(course.s_m)
     assert profile.max() == pytest.approx(course.z_m.max())
 
@@ -240,7 +241,7 @@ def test_recorder_without_plan_and_relative_stamps(tmp_path: Path) -> None:
     recorder = RideRecorder(rec, course, RIDER, None)
     recorder.log_course()
     recorder.log_state(RiderState(3.0, 10.0, 0.5, 11.0, 0.0, 350.0, 20000.0, 3.0))
-    recorder.log_power(PowerReading(3.5, 351.0))
+    recorder.log_sample(PowerReading(3.5, 351.0))
     recorder.log_diagnostics([Diagnostic(4.0, "inputs", 2, "power stale")])
     rec.flush()
     rec.disconnect()
@@ -249,6 +250,28 @@ def test_recorder_without_plan_and_relative_stamps(tmp_path: Path) -> None:
     assert values.tolist() == [351.0]
     assert index[0].total_seconds() == pytest.approx(3.5)  # a duration timeline
     assert "/plots/power/plan" not in store.summary()
+
+
+def test_sample_without_a_view_is_counted_and_noted_once(tmp_path: Path) -> None:
+    """A sensor added to the inputs before the recorder has a view for it: not drawn,
+    counted, one log/inputs line (not one per sample)."""
+    @dataclass(frozen=True)
+    class HeartRate:
+        stamp_s: float
+        bpm: float
+
+    path = tmp_path / "hr.rrd"
+    rec = open_recording(RerunSink.parse(f"file:{path}"))
+    recorder = RideRecorder(rec, make_course(), RIDER, None)
+    for t in (1.0, 2.0, 3.0):
+        recorder.log_sample(HeartRate(t, 150.0))  # type: ignore[arg-type]
+    recorder.log_sample(PowerReading(3.0, 300.0))
+    rec.flush()
+    rec.disconnect()
+    store = RrdReader(path).store().stream().collect()
+    assert recorder.skipped_inputs == 3
+    assert texts(store, "/log/inputs") == ["HeartRate: no view for this sample type, not drawn"]
+    assert scalars(store, "ride_time", "/plots/power/actual")[1].tolist() == [300.0]
 
 
 @pytest.mark.parametrize(("text", "kind", "target"), [
@@ -278,7 +301,7 @@ def test_none_sink_records_nothing(tmp_path: Path) -> None:
     assert not rec.is_enabled()
     recorder = RideRecorder(rec, make_course(), RIDER, None)
     recorder.log_course()
-    recorder.log_power(PowerReading(1.0, 300.0))  # a no-op, no error
+    recorder.log_sample(PowerReading(1.0, 300.0))  # a no-op, no error
     assert isinstance(rec, rr.RecordingStream)
 
 
@@ -287,8 +310,8 @@ def test_one_stream_tees_to_several_sinks(tmp_path: Path) -> None:
     paths = [tmp_path / "a.rrd", tmp_path / "b.rrd"]
     rec = open_recording([RerunSink.parse(f"file:{p}") for p in paths])
     recorder = RideRecorder(rec, make_course(), RIDER, None)
-    recorder.log_power(PowerReading(2.0, 300.0))
-    recorder.log_power(PowerReading(3.0, 310.0))
+    recorder.log_sample(PowerReading(2.0, 300.0))
+    recorder.log_sample(PowerReading(3.0, 310.0))
     rec.flush()
     rec.disconnect()
     for path in paths:
