@@ -32,8 +32,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from itt_planner.course.geometry import Course
 from itt_planner.course.builder import build_course
+from itt_planner.course.geometry import Course
 from itt_planner.course.loader import load_course
 from itt_planner.model.rider import Rider
 
@@ -100,7 +100,8 @@ def course_by_name(name: str) -> Course:
 def _case(name: str, model: str, scale: float, queue: mp.Queue) -> None:
     import numpy as np  # noqa: PLC0415
 
-    from itt_planner.ocp.course_problem import OcpSettings, solve_plan  # noqa: PLC0415
+    from itt_planner.ocp.course_problem import solve_plan  # noqa: PLC0415
+    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
 
     row: dict[str, Any] = {"course": name, "model": model, "mesh": scale}
     try:

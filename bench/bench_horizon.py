@@ -22,11 +22,13 @@ import numpy as np
 from itt_planner.course.geometry import Course
 from itt_planner.course.loader import load_course
 from itt_planner.live.engine import EngineSettings
-from itt_planner.ocp.horizon import SUBOPTIMAL_FEASIBLE, HorizonPlanner, HorizonSettings
-from itt_planner.ocp.course_problem import solve_plan
-from itt_planner.ocp.cache import load_or_solve
 from itt_planner.model.rider import PRESETS
 from itt_planner.model.state import RiderState
+from itt_planner.ocp.cache import load_or_solve
+from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.horizon import HorizonPlanner
+from itt_planner.ocp.horizon_settings import HorizonSettings
+from itt_planner.ocp.solver import PlanStatus
 
 
 def state_at(course, plan, s: float) -> RiderState:
@@ -73,7 +75,7 @@ def main() -> None:
                 its.append(sol.iterations)
                 # What the engine can use: a success within its 1 s overrun limit.
                 ok += sol.success and sol.solve_time_s <= EngineSettings().max_solve_time_s
-                subopt += sol.status == SUBOPTIMAL_FEASIBLE
+                subopt += sol.success and sol.outcome is PlanStatus.CAPPED
                 if sol.success:
                     wmin = min(wmin, float(sol.w_prime_j.min()))
             lat_a = np.array(lat)

@@ -31,14 +31,19 @@ import time
 import casadi as ca
 import numpy as np
 
-from itt_planner.model.conditions import Conditions
 from itt_planner.course.geometry import Course
 from itt_planner.course.loader import load_course
-from itt_planner.ocp.mesh import build_mesh, road_data
-from itt_planner.model.dynamics import ModelParams, build_3d
-from itt_planner.ocp.course_problem import OcpSettings, bounds, initial_guess, solve_plan, start_speed
-from itt_planner.ocp.plan import Plan
+from itt_planner.model.conditions import Conditions
+from itt_planner.model.dynamics import build_3d
+from itt_planner.model.params import ModelParams
 from itt_planner.model.rider import PRESETS
+from itt_planner.ocp.bounds import simple_bounds, speed_limit_mps
+from itt_planner.ocp.course_nlp import start_speed
+from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.course_settings import OcpSettings
+from itt_planner.ocp.guess import initial_guess
+from itt_planner.ocp.mesh import build_mesh, road_data
+from itt_planner.ocp.plan import Plan
 
 
 def peak_mb() -> float:
@@ -60,7 +65,7 @@ def piece(course: Course, length_m: float) -> Course:
                                   kappa_per_m=course.kappa_per_m[:k], synthetic=True)
 
 
-def naive_baseline(course: Course, rider) -> dict:  # noqa: ANN001
+def naive_baseline(course: Course, rider) -> dict:
     """Opti + MX, uniform 2 m mesh, one RK4 step per interval, IPOPT defaults."""
     model = build_3d()
     nodes = build_mesh(course, uniform_m=2.0)
@@ -82,7 +87,10 @@ def naive_baseline(course: Course, rider) -> dict:  # noqa: ANN001
         opti.subject_to(model.path(x[:, k + 1], par) <= 0)
     xg, _ = initial_guess(model, course, nodes, rider, Conditions(),
                           start_speed(rider, Conditions(), OcpSettings()))
-    (lbx, ubx), _ = bounds(model, course, nodes, rider, OcpSettings(), xg[:, 0])
+    v_max = speed_limit_mps(course, nodes, rider, Conditions(), float(xg[model.index("v"), 0]))
+    b = simple_bounds(model, course, nodes, xg[:, 0], margin_m=OcpSettings().margin_m,
+                      v_max_mps=v_max)
+    lbx, ubx = b.lbx, b.ubx
     opti.subject_to(opti.bounded(lbx, x, ubx))
     opti.set_initial(x, np.clip(xg, lbx, ubx))
     opti.minimize(cost)
@@ -133,7 +141,7 @@ def _baseline_case(spec: tuple[str, float], out: mp.Queue) -> None:
     out.put({**res, "peak_mb": peak_mb(), "load": load()})
 
 
-def run(target, spec) -> dict:  # noqa: ANN001
+def run(target, spec) -> dict:
     """Run one case in a fresh process (clean peak-RSS figure, no cached solver)."""
     q: mp.Queue = mp.get_context("fork").Queue()
     p = mp.get_context("fork").Process(target=target, args=(spec, q))

@@ -9,10 +9,10 @@ Two models share one parameter vector and one interface:
   E4-E5 at equilibrium, states `x = [n, alpha, v, W_n, delta_n, E_n]` (why: horizon.py).
 
 Everything rider- or weather-specific (mass, drag, grip, wind, ...) is a symbolic
-parameter (`ModelParams.vector()`), not a constant, so the compiled integrator of
-`ocp`/`horizon` is reused for every rider and condition. The road enters through four
-numbers per interval (`ROAD`): the mean curvature and slope, the heading for the wind
-projection (E3), and the interval length.
+parameter (`params.ModelParams.vector()`), not a constant, so the compiled integrator of
+the OCPs is reused for every rider and condition. The road enters through four numbers
+per interval (`params.ROAD`): the mean curvature and slope, the heading for the wind
+projection (E3), and the interval length. `rk4_step` integrates one interval.
 
 Non-smooth terms of the physics (`max(W_n, 0)`, `|v - V_w|`, the E9 switch at critical
 power) are smoothed with small, documented widths so a Newton-type solver sees C1
@@ -21,14 +21,14 @@ functions; the numeric `power_w` reported in a Plan uses the exact formula.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+from typing import Any, cast
 
 import casadi as ca
 import numpy as np
 
-from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
-from itt_planner.model.rider import Rider
+from itt_planner.model.conditions import GRAVITY_MPS2
+from itt_planner.model.params import PARAMS, ROAD
 from itt_planner.model.wprime import WPrimeModel, e_n_rate
 
 #: State names of the 3D model (model.md section 2), in vector order.
@@ -36,13 +36,6 @@ STATES_3D = ("n", "alpha", "phi", "phi_dot", "v", "w_n", "delta_n", "e_n")
 CONTROLS_3D = ("u_delta", "u_w")
 STATES_1D = ("v", "w_n", "e_n")
 CONTROLS_1D = ("u_w",)
-#: Road data per integration interval: mean curvature (1/m), mean slope angle (rad),
-#: centre-line heading (rad, for the wind projection of E3), interval length (m).
-ROAD = ("kappa", "beta", "theta", "ds")
-#: Model parameters, the order of `ModelParams.vector()`.
-PARAMS = ("mass", "roll_inertia", "com_height", "k_v", "crr", "wheelbase", "steer_max",
-          "power_rate_max", "steer_rate_max", "cp", "p_max", "w_prime", "pedal_lean", "mu_x",
-          "mu_y", "wind_e", "wind_n", "w_delta", "w_power", "efficiency")
 
 #: Smoothing width of max(W_n, 0) in the dynamics (normalised power; 1e-3 is ~1 W).
 _EPS_WN = 1e-3
@@ -58,41 +51,6 @@ _EPS_PEDAL = 0.02
 #: C15 switches pedalling off slightly before `pedal_lean` so that the smoothed gate
 #: leaves only a watt or two at exactly `pedal_lean`.
 _PEDAL_MARGIN = 0.95
-
-
-@dataclass(frozen=True)
-class ModelParams:
-    """Numeric values of `PARAMS` for one rider and one set of conditions (SI units)."""
-
-    rider: Rider
-    conditions: Conditions
-    w_delta: float = 0.01
-    w_power: float = 0.01
-
-    def vector(self) -> np.ndarray:
-        """The parameter vector in `PARAMS` order; k_v = 0.5 rho C_D A_f (E3).
-
-        `mu_y` is the effective lateral limit of C16, `lateral_limit_mps2 / g`: the grip,
-        or the rider's own cornering limit when that is lower.
-        """
-        r, c = self.rider, self.conditions
-        wind_e, wind_n = c.wind_enu_mps()
-        return np.array([
-            r.mass_kg, r.roll_inertia_kgm2, r.com_height_m,
-            0.5 * c.air_density_kgpm3 * r.drag_area_m2, r.crr, r.wheelbase_m, r.steer_max_rad,
-            r.power_rate_max_wps, r.steer_rate_max_radps, r.critical_power_w, r.max_power_w,
-            r.w_prime_j, r.pedal_lean_max_rad, c.mu_x,
-            lateral_limit_mps2(r, c) / GRAVITY_MPS2, wind_e, wind_n,
-            self.w_delta, self.w_power, r.drivetrain_efficiency,
-        ])
-
-
-def lateral_limit_mps2(rider: Rider, conditions: Conditions) -> float:
-    """The lateral acceleration C16 allows: `min(mu_y g, max_lateral_accel_mps2)`."""
-    grip = conditions.mu_y * GRAVITY_MPS2
-    if rider.max_lateral_accel_mps2 is None:
-        return grip
-    return min(grip, rider.max_lateral_accel_mps2)
 
 
 @dataclass(frozen=True)
@@ -188,7 +146,7 @@ def _spatial_ode(name: str, x: ca.SX, u: ca.SX, road: ca.SX, p: ca.SX, x_dot: ca
     """Time derivatives -> space derivatives (divide by `s_dot`), with dt/ds and the
     running cost of the objective (section 5): dt/ds (1 + w_1 u_delta^2 + w_2 u_W^2)."""
     dt_ds = 1 / s_dot
-    weight = 1
+    weight: Any = 1
     for term in penalties:  # summed left to right, as the objective is written
         weight = weight + term
     return ca.Function(name, [x, u, road, p], [x_dot * dt_ds, dt_ds, dt_ds * weight],
@@ -291,7 +249,7 @@ def build_3d_steady_lean(wprime_model: WPrimeModel = WPrimeModel.SKIBA, *,
 
     ay = v * yaw_rate
     friction = _friction(v, w_n, ay, q)
-    r = steady_lean_rad(ay) / (_PEDAL_MARGIN * q["pedal_lean"])  # C15 on the steady lean
+    r = cast(ca.SX, steady_lean_rad(ay)) / (_PEDAL_MARGIN * q["pedal_lean"])  # C15, steady lean
     pedal = w_n - _smooth_pos(1 - r * r, _EPS_PEDAL)
     path = ca.Function("path3dsteady", [x, p], [ca.vertcat(friction - 1, pedal)],
                        ["x", "p"], ["g"])
@@ -356,7 +314,9 @@ def rk4_step(model: SpatialModel, substeps: int) -> ca.Function:
     road = ca.SX.sym("road", len(ROAD))
     p = ca.SX.sym("p", len(PARAMS))
     h = road[3] / substeps
-    xk, t, j = x, 0, 0
+    xk = x
+    t: Any = 0  # SX after the first step
+    j: Any = 0
     for _ in range(substeps):
         k1, t1, j1 = model.ode(xk, u, road, p)
         k2, t2, j2 = model.ode(xk + h / 2 * k1, u, road, p)
@@ -367,58 +327,3 @@ def rk4_step(model: SpatialModel, substeps: int) -> ca.Function:
         j = j + h / 6 * (j1 + 2 * j2 + 2 * j3 + j4)
     return ca.Function(f"F{model.name}_{substeps}", [x, u, road, p], [xk, t, j],
                        ["x", "u", "road", "p"], ["xf", "dt", "dJ"])
-
-
-def steady_speed_mps(power_w: float, rider: Rider, conditions: Conditions = Conditions(),
-                     grade: float = 0.0) -> float:
-    """Steady speed of the E3 power balance (Martin et al. 1998 form, no wind), m/s.
-
-    Solves `eta P = v (m g (c_rr cos b + sin b) + k_v v^2)` (`eta`: drivetrain efficiency)
-    for the physical root: the largest real root of the depressed cubic
-    `v^3 + a v + b = 0`. Climbing or on the flat (`a > 0`) there is one real root
-    (Cardano). On a descent steep enough that gravity beats rolling resistance (`a < 0`)
-    the cubic can have three real roots (0 < v1 < v2 with a negative third when P is small,
-    a double root at P = 0 ... ); the physical speed is where propulsion plus gravity
-    balances drag from above, the largest root, from the trigonometric form. With P = 0
-    that is the terminal speed `sqrt(-a)`. One Newton step polishes the closed form
-    (Cardano loses digits when `a` is large and `b` small). Returns 0 when there is no
-    positive balance (no power on a road that does not descend: the rider stops).
-
-    Raises:
-        ValueError: negative or non-finite power, or a non-finite grade.
-    """
-    if not (math.isfinite(power_w) and power_w >= 0 and math.isfinite(grade)):
-        raise ValueError(f"steady speed needs a power >= 0 W and a finite grade, got "
-                         f"{power_w!r} W at {grade!r}")
-    beta = math.atan(grade)
-    k_v = 0.5 * conditions.air_density_kgpm3 * rider.drag_area_m2
-    a = rider.mass_kg * GRAVITY_MPS2 * (rider.crr * math.cos(beta) + math.sin(beta)) / k_v
-    b = -rider.drivetrain_efficiency * power_w / k_v
-    disc = (b / 2) ** 2 + (a / 3) ** 3
-    if disc >= 0:  # one real root
-        root = math.sqrt(disc)
-        v = math.copysign(abs(-b / 2 + root) ** (1 / 3), -b / 2 + root) + math.copysign(
-            abs(-b / 2 - root) ** (1 / 3), -b / 2 - root)
-    else:  # three real roots (a < 0): the largest, trigonometric form
-        r = math.sqrt(-a / 3)
-        cos3 = max(-1.0, min(1.0, (3 * b / (2 * a)) * math.sqrt(-3 / a)))
-        v = 2 * r * math.cos(math.acos(cos3) / 3)
-    slope = 3 * v * v + a
-    if slope > 0:  # Newton polish; f is convex beyond its largest root's neighbourhood
-        v -= (v ** 3 + a * v + b) / slope
-    return max(v, 0.0)
-
-
-def speed_bound_mps(rider: Rider, conditions: Conditions, steepest_grade: float,
-                    *, start_mps: float = 0.0) -> float:
-    """An upper bound on the speed of any physical ride of the course (m/s).
-
-    Above the steady speed at full power (`max_power_w`) on the steepest descent the
-    rider decelerates everywhere on the course, so no ride that starts slower can get
-    faster; a tail wind adds at most its own speed. The margin (x1.25 + 3 m/s) keeps
-    the bound inactive at every physical optimum; it exists so that an integration
-    artefact (a coarse step at low speed, issue 18) can never be an optimum.
-    """
-    grade = min(float(steepest_grade), 0.0)
-    v_max = steady_speed_mps(rider.max_power_w, rider, conditions, grade)
-    return max(1.25 * (v_max + conditions.wind_speed_mps) + 3.0, start_mps)

@@ -57,7 +57,8 @@ class Rider:
         for field in positive:
             value = getattr(self, field)
             if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
-                msg = f"rider {self.name!r}: {field} must be a positive finite number, got {value!r}"
+                msg = (f"rider {self.name!r}: {field} must be a positive finite number, "
+                       f"got {value!r}")
                 raise RiderError(msg)
         if not 0 <= self.crr < 0.1:
             msg = f"rider {self.name!r}: crr must be in [0, 0.1), got {self.crr!r}"

@@ -12,27 +12,28 @@ from typing import Any
 
 import casadi as ca
 
-
 #: Width of the band below full W' over which the paper variant's recovery fades out.
 _PAPER_CAP_BAND = 0.02
 
 
-class WPrimeModel(str, Enum):
+class WPrimeModel(str, Enum):  # noqa: UP042  (StrEnum would change str(); a refactor keeps it)
     """Which E9 variant: the Skiba differential model (default) or the paper's."""
 
     SKIBA = "skiba"
     PAPER = "paper"
 
 
-def e_n_rate(e_n: Any, p_plus_w: Any, critical_power_w: float, w_prime_j: float,
+def e_n_rate(e_n: Any, p_plus_w: Any, critical_power_w: Any, w_prime_j: Any,
              model: WPrimeModel = WPrimeModel.SKIBA, *, sharpness_w: float = 0.0) -> Any:
     """d E_n / dt for normalised W' `e_n` and pedalling power `p_plus_w` >= 0 (E9).
 
     Skiba: depletion `-(P+ - W_C)/E_0` above `W_C`, recovery `(W_C - P+)(1 - E_n)/E_0`
     below. Paper [fix]: the symmetric model, whose recovery fades out over the last
     `_PAPER_CAP_BAND` below full, so W' never grows above 1 yet riding below CP stays
-    allowed (a hard cap would be a non-smooth constraint the NLP cannot handle). `sharpness_w` > 0 smooths the switch at `W_C` (a softplus of
-    that width in watts) for a gradient-based solver; 0 gives the exact kink.
+    allowed (a hard cap would be a non-smooth constraint the NLP cannot handle).
+    `sharpness_w` > 0 smooths the switch at `W_C` (a softplus of that width in watts)
+    for a gradient-based solver; 0 gives the exact kink. Numbers (the estimator) or
+    CasADi symbols (the OCP, with the rider's parameters symbolic) alike.
     """
     excess = p_plus_w - critical_power_w
     if sharpness_w > 0:

@@ -2,7 +2,7 @@
 
 The key hashes the course (source hash and the arrays themselves), the rider, the
 conditions, the OCP settings, the model, and the source code of the modules that make a
-plan (`PLAN_CODE_MODULES`: physics, transcription, mesh, solver strategy, verification),
+plan (`PLAN_CODE_MODULES`: physics, transcription, mesh, bounds, solver, verification),
 so neither a changed input nor a physics change can hit a stale plan. Only converged and
 verified plans are stored. Writing goes through a temporary file and an atomic rename.
 """
@@ -19,21 +19,27 @@ from dataclasses import asdict
 from functools import lru_cache
 from pathlib import Path
 
-from itt_planner.model.conditions import Conditions
 from itt_planner.course.geometry import Course
 from itt_planner.errors import IttError
-from itt_planner.ocp.course_problem import OcpSettings, solve_plan
-from itt_planner.ocp.plan import PLAN_SUFFIX, Plan
+from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
+from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.course_settings import OcpSettings
+from itt_planner.ocp.plan import PLAN_SUFFIX, Plan
 
 log = logging.getLogger(__name__)
 
-#: Modules whose source decides what a plan is (hashed into every key).
-PLAN_CODE_MODULES = ("itt_planner.model.dynamics", "itt_planner.model.wprime", "itt_planner.ocp.transcription",
-                     "itt_planner.ocp.mesh", "itt_planner.ocp.course_problem", "itt_planner.ocp.guess",
-                     "itt_planner.ocp.solver",
-                     "itt_planner.ocp.verify", "itt_planner.ocp.plan", "itt_planner.model.rider",
-                     "itt_planner.model.conditions")
+#: Modules whose source decides what a plan is (hashed into every key): the physics, the
+#: transcription, mesh, bounds and guess, the solver and its options, the full-course
+#: problem's settings, NLP and restart strategies, the verification and the plan itself.
+PLAN_CODE_MODULES = (
+    "itt_planner.model.dynamics", "itt_planner.model.params", "itt_planner.model.steady",
+    "itt_planner.model.wprime", "itt_planner.model.rider", "itt_planner.model.conditions",
+    "itt_planner.ocp.transcription", "itt_planner.ocp.mesh", "itt_planner.ocp.bounds",
+    "itt_planner.ocp.guess", "itt_planner.ocp.solver", "itt_planner.ocp.course_settings",
+    "itt_planner.ocp.course_nlp", "itt_planner.ocp.course_problem", "itt_planner.ocp.verify",
+    "itt_planner.ocp.plan",
+)
 
 
 @lru_cache(maxsize=1)

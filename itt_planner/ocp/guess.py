@@ -1,10 +1,10 @@
 """Initial guesses of the full-course OCP, valid for any rider on any grade, and the
 speed-aware mesh caps that go with them (issue 14 item 2, issue 18).
 
-- `speed_guess`: steady speed at critical power on the local grade (`model.steady_speed_mps`,
+- `speed_guess`: steady speed at critical power on the local grade (`model.steady.steady_speed_mps`,
   the physical root of the cubic on every branch: terminal speed on steep descents),
   capped by `_GUESS_GRIP` of the lateral limit in corners (grip or the rider's own,
-  `model.lateral_limit_mps2`), with bounded acceleration and braking;
+  `model.params.lateral_limit_mps2`), with bounded acceleration and braking;
 - `initial_guess`: that speed with steady lean and steering along the centre line;
 - `plan_guess`: an existing plan moved onto another mesh (warm starts, mesh studies);
 - `speed_spacing_cap` / `plan_spacing_cap`: the largest mesh step the guessed (or a
@@ -17,26 +17,21 @@ import math
 
 import numpy as np
 
-from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.course.geometry import Course
 from itt_planner.errors import SolveError
-from itt_planner.ocp.mesh import speed_spacing_m
-from itt_planner.model.dynamics import (
-    CONTROLS_1D,
-    STATES_1D,
-    SpatialModel,
-    lateral_limit_mps2,
-    steady_speed_mps,
-)
-from itt_planner.ocp.plan import Plan
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.model.dynamics import CONTROLS_1D, STATES_1D, SpatialModel
+from itt_planner.model.params import lateral_limit_mps2
 from itt_planner.model.rider import Rider
+from itt_planner.model.steady import steady_speed_mps
+from itt_planner.ocp.bounds import V_MIN_MPS
+from itt_planner.ocp.mesh import speed_spacing_m
+from itt_planner.ocp.plan import Plan
 
 #: Share of the grip the launch may use at the start node (model.md launch note).
 LAUNCH_GRIP = 0.8
 #: Share of the lateral limit the initial guess uses in corners.
 _GUESS_GRIP = 0.7
-#: Lowest speed the NLP allows (keeps 1/s_dot finite), m/s.
-V_MIN_MPS = 0.5
 #: The `Plan` array of each state and control of the spatial models.
 PLAN_ARRAYS = {"n": "n_m", "alpha": "alpha_rad", "phi": "phi_rad", "phi_dot": "phi_dot_radps",
                "v": "v_mps", "w_n": "w_n", "delta_n": "delta_n", "e_n": "e_n",
@@ -61,7 +56,8 @@ def speed_guess(course: Course, nodes: np.ndarray, rider: Rider, conditions: Con
         v[i] = min(v[i], math.sqrt(v[i - 1] ** 2 + 2 * 1.0 * ds[i - 1]))
     for i in range(len(v) - 2, 0, -1):  # brake at <= 3 m/s^2
         v[i] = min(v[i], math.sqrt(v[i + 1] ** 2 + 2 * 3.0 * ds[i]))
-    return v
+    speed: np.ndarray = v
+    return speed
 
 
 def initial_guess(model: SpatialModel, course: Course, nodes: np.ndarray, rider: Rider,
@@ -85,7 +81,7 @@ def plan_guess(model: SpatialModel, plan: Plan, nodes: np.ndarray, x: np.ndarray
     """An initial guess taken from an existing plan, moved onto `nodes`.
 
     States are interpolated linearly in s. A plan's controls hold over its intervals
-    (`to_plan`), so each new interval takes the control of the plan interval that holds
+    (`course_nlp.to_plan`), so each new interval takes the control of the plan interval that holds
     its midpoint. Rows a 1D plan does not have (the lateral states and `u_delta` of the
     3D model) keep the values of `x`, `u` (the default guess); the caller clips the
     result to the bounds and keeps its own initial state. (Integrating the plan's own

@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from itt_planner.course.geometry import Course
-from itt_planner.ocp.plan import Plan
 from itt_planner.model.state import RiderState
+from itt_planner.ocp.plan import Plan
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,8 @@ def speed_spacing_m(v_mps: np.ndarray, accel_mps2: np.ndarray) -> np.ndarray:
     """Largest step that keeps one RK4 step of `dv/ds = a/v` well inside its stability
     region: `h * 2 a / v^2 <= 1` (RK4 is stable to 2.78), for speeds `v_mps` and tyre
     accelerations (force per unit mass) `accel_mps2`."""
-    return np.asarray(v_mps) ** 2 / (2 * np.maximum(np.abs(accel_mps2), 1e-6))
+    h: np.ndarray = np.asarray(v_mps) ** 2 / (2 * np.maximum(np.abs(accel_mps2), 1e-6))
+    return h
 
 
 def target_spacing(course: Course, h_min_m: float, h_max_m: float, grade: float = 0.25,
@@ -78,7 +79,7 @@ def build_mesh(course: Course, h_min_m: float = 1.0, h_max_m: float = 10.0,
     end = course.length_m if end_m is None else end_m
     if uniform_m is not None:
         if h_cap_m is None or np.all(h_cap_m >= uniform_m):
-            n = max(1, int(round((end - start_m) / uniform_m)))
+            n = max(1, round((end - start_m) / uniform_m))
             return np.linspace(start_m, end, n + 1)
         h = _graded(np.minimum(np.maximum(h_cap_m, _H_FLOOR_M), uniform_m), course.ds_m, 0.25)
     else:

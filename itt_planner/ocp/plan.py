@@ -87,7 +87,8 @@ class Plan:
 
     def at(self, name: str, s_m: float | np.ndarray) -> np.ndarray:
         """Linear interpolation of one plan array (by attribute name) at `s_m`."""
-        return np.interp(s_m, self.s_m, getattr(self, name))
+        values: np.ndarray = np.interp(s_m, self.s_m, getattr(self, name))
+        return values
 
     def save(self, path: str | Path) -> Path:
         path = Path(path)
@@ -110,7 +111,7 @@ class Plan:
         try:
             with np.load(path, allow_pickle=False) as data:
                 header = json.loads(str(data["header"]))
-                arrays = {k: np.array(data[k]) for k in PLAN_ARRAYS}
+                arrays: dict[str, Any] = {k: np.array(data[k]) for k in PLAN_ARRAYS}
         except (OSError, ValueError, KeyError) as err:
             raise IttError(f"{path}: not an itt-planner plan file ({err})") from None
         if header.get("format") != _FORMAT:

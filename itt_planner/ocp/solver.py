@@ -1,7 +1,12 @@
-"""The solver seam: IPOPT option sets in one place, and what a solve's status means.
+"""The solver seam: every NLP of the project is solved here, and here only is IPOPT named.
 
-IPOPT reports a `return_status` string; code and tests reason about `PlanStatus`
-instead:
+Both OCPs (the full-course problem, `course_problem`, and the receding horizon,
+`horizon`) hand a `Transcription` and its numeric data to an `NlpSolver` and get a
+`SolveResult` back: the iterate, the multipliers, and a `PlanStatus` that code and tests
+reason about, with the solver's raw status string, iterations and time beside it.
+Swapping IPOPT for another NLP solver touches this module only: the plugin, the option
+sets (`full_course_solver`, `horizon_solver`), and the mapping of raw statuses onto
+`PlanStatus`:
 
 - `converged`: `Solve_Succeeded`, or `Solved_To_Acceptable_Level` (IPOPT's acceptable
   tolerances, 10-100x looser; accepted because every full-course plan is then replayed
@@ -12,23 +17,40 @@ instead:
 
 A plan carries both: `Plan.status` (this enum's value) and `Plan.solver_status` (IPOPT's
 raw string, or `Invalid_Plan` when verification overruled a success).
+
+The solver is built once per option set (a CasADi Function over the transcription's
+compiled derivative kernels, cheap to build) and called many times: the horizon builds
+its three at start-up and calls them on every replan.
 """
 
 from __future__ import annotations
 
+import time
+from dataclasses import dataclass
 from enum import Enum
 from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from itt_planner.ocp.transcription import Transcription
 
 #: IPOPT statuses that count as converged (module docstring).
 CONVERGED_STATUSES = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 #: IPOPT statuses of a run stopped by its budget.
 CAPPED_STATUSES = ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded",
                    "Maximum_WallTime_Exceeded")
+#: IPOPT statuses of a run that gave up early, which a start further inside the bounds
+#: may fix (`SolveResult.gave_up_early`, the full-course problem's first restart).
+_EARLY_FAILURES = ("Restoration_Failed", "Error_In_Step_Computation",
+                   "Infeasible_Problem_Detected")
 #: Raw status a plan gets when the solver converged but verification failed.
 INVALID_RAW_STATUS = "Invalid_Plan"
+#: Raw status of an iterate with NaN or inf in it (never used).
+NON_FINITE_STATUS = "non-finite iterate"
 
 
-class PlanStatus(str, Enum):
+class PlanStatus(str, Enum):  # noqa: UP042  (StrEnum would change str(); a refactor keeps it)
     """What a solve's outcome means for its use (module docstring)."""
 
     CONVERGED = "converged"
@@ -38,7 +60,7 @@ class PlanStatus(str, Enum):
 
     @classmethod
     def of(cls, raw_status: str) -> PlanStatus:
-        """Classify an IPOPT `return_status`."""
+        """Classify a raw solver status (IPOPT's `return_status`, or `Invalid_Plan`)."""
         if raw_status in CONVERGED_STATUSES:
             return cls.CONVERGED
         if raw_status in CAPPED_STATUSES:
@@ -46,6 +68,77 @@ class PlanStatus(str, Enum):
         if raw_status == INVALID_RAW_STATUS:
             return cls.INVALID
         return cls.FAILED
+
+
+@dataclass(frozen=True, eq=False)
+class SolveResult:
+    """One solver run.
+
+    Attributes:
+        w: the last iterate (the start itself when the run raised or ended non-finite).
+        lam_x, lam_g: multipliers of the simple bounds and of the constraints (None
+            when the run raised or ended non-finite).
+        objective: the objective at `w` (nan when the run raised).
+        status: what the outcome means (`PlanStatus`: converged, capped or failed).
+        raw_status: the solver's own status string (`error: ...` when it raised).
+        iterations: iterations of this run.
+        time_s: wall time of this run.
+    """
+
+    w: np.ndarray
+    lam_x: np.ndarray | None
+    lam_g: np.ndarray | None
+    objective: float
+    status: PlanStatus
+    raw_status: str
+    iterations: int
+    time_s: float
+
+    @property
+    def converged(self) -> bool:
+        return self.status is PlanStatus.CONVERGED
+
+    @property
+    def gave_up_early(self) -> bool:
+        """Stopped early by infeasibility or a failed restoration (not by the budget)."""
+        return self.raw_status in _EARLY_FAILURES
+
+
+class NlpSolver:
+    """One NLP solver with fixed options over a transcription; build once, `solve` often.
+
+    Build it with `full_course_solver` or `horizon_solver` (the option sets).
+    """
+
+    def __init__(self, name: str, tr: Transcription, options: dict[str, Any]) -> None:
+        self._solver = ca.nlpsol(name, "ipopt", tr.nlp, {**tr.derivatives, **options})
+        self._lbg, self._ubg = tr.lbg, tr.ubg
+
+    def solve(self, w0: np.ndarray, p: np.ndarray, lbw: np.ndarray, ubw: np.ndarray, *,
+              lam_x0: np.ndarray | None = None, lam_g0: np.ndarray | None = None
+              ) -> SolveResult:
+        """Solve from `w0` (clipped into the bounds `lbw`, `ubw`) with parameters `p`;
+        `lam_x0`, `lam_g0`: starting multipliers. Never raises on a solver failure: an
+        evaluation error inside CasADi is a `failed` result (`error: ...`)."""
+        w0 = np.clip(w0, lbw, ubw)
+        warm = {} if lam_x0 is None or lam_g0 is None else {"lam_x0": lam_x0, "lam_g0": lam_g0}
+        t0 = time.perf_counter()
+        try:
+            sol = self._solver(x0=w0, p=p, lbx=lbw, ubx=ubw, lbg=self._lbg, ubg=self._ubg,
+                               **warm)
+        except RuntimeError as err:
+            return SolveResult(w0, None, None, float("nan"), PlanStatus.FAILED,
+                               f"error: {err}", 0, time.perf_counter() - t0)
+        elapsed = time.perf_counter() - t0
+        stats = self._solver.stats()
+        iterations = int(stats.get("iter_count", 0))
+        w = np.asarray(sol["x"]).ravel()
+        if not np.all(np.isfinite(w)):
+            return SolveResult(w0, None, None, float("nan"), PlanStatus.FAILED,
+                               NON_FINITE_STATUS, iterations, elapsed)
+        raw = str(stats.get("return_status", "unknown"))
+        return SolveResult(w, np.asarray(sol["lam_x"]).ravel(), np.asarray(sol["lam_g"]).ravel(),
+                           float(sol["f"]), PlanStatus.of(raw), raw, iterations, elapsed)
 
 
 #: Options every IPOPT run of the project shares (quiet, MUMPS, status instead of raise).
@@ -63,13 +156,13 @@ _COMMON = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
 #: barrier acted on a different problem than the one the weights were tuned on; without
 #: it the whole verona-like sweep went from 95 % to 98 % usable replans and the p95
 #: latency from 387 to 246 ms (bench/RESULTS.md).
-HORIZON_WARM = {"mu_init": 1e-4, "mu_strategy": "monotone", "warm_start_init_point": "yes",
-                "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6,
-                "warm_start_slack_bound_push": 1e-6, "nlp_scaling_method": "none"}
+_HORIZON_WARM = {"mu_init": 1e-4, "mu_strategy": "monotone", "warm_start_init_point": "yes",
+                 "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6,
+                 "warm_start_slack_bound_push": 1e-6, "nlp_scaling_method": "none"}
 #: The first replan (or one after a failure) starts from the full-course plan, which was
 #: solved with the roll dynamics: a larger barrier lets IPOPT move away from it (with the
 #: warm settings 1 of 12 verona-like windows failed, with these none).
-HORIZON_COLD = {"mu_init": 1e-2, "mu_strategy": "monotone", "nlp_scaling_method": "none"}
+_HORIZON_COLD = {"mu_init": 1e-2, "mu_strategy": "monotone", "nlp_scaling_method": "none"}
 
 
 #: Cap on the adaptive barrier parameter (IPOPT's default 1e5) of the 1D model. Measured
@@ -77,36 +170,39 @@ HORIZON_COLD = {"mu_init": 1e-2, "mu_strategy": "monotone", "nlp_scaling_method"
 #: barrier wander up and took 214 iterations on a 3.9 km climb at half the mesh spacing
 #: (29 with the cap), 284 on rovereto-like at half spacing (38), and on a 9 km hilly
 #: route converged to a plan that failed its verification (63 iterations, verified, with).
-MU_MAX_1D = 0.1
+_MU_MAX_1D = 0.1
 
 
-def full_course_options(*, max_iter: int, max_cpu_time_s: float, tol: float,
-                        bound_push: float, acceptable_tol: float | None = None,
-                        mu_max: float | None = None) -> dict[str, Any]:
-    """IPOPT options of the full-course OCP (`ocp.solve_plan`).
+def full_course_solver(tr: Transcription, *, max_iter: int, max_cpu_time_s: float, tol: float,
+                       bound_push: float, acceptable_tol: float | None = None) -> NlpSolver:
+    """The solver of one full-course attempt (`course_problem.solve_plan`).
 
-    `bound_push` (= `bound_frac`): how far the initial point is moved inside its bounds;
-    IPOPT's default 1e-2 first (1e-4 took 116 instead of 75 iterations on verona-like 3D),
-    1e-4 as a restart after an early failure (see `ocp`). `acceptable_tol`: IPOPT's
-    acceptable level (default: IPOPT's own 1e-6 ... with 15 acceptable iterations).
-    `mu_max`: cap of the adaptive barrier parameter (`MU_MAX_1D`); None: IPOPT's.
+    `bound_push` (= IPOPT's `bound_frac`): how far the initial point is moved inside its
+    bounds; IPOPT's default 1e-2 first (1e-4 took 116 instead of 75 iterations on
+    verona-like 3D), 1e-4 as a restart after an early failure (see `course_problem`).
+    `acceptable_tol`: IPOPT's acceptable level (default: IPOPT's own 1e-6 ... with 15
+    acceptable iterations). The 1D model's barrier is capped (`_MU_MAX_1D`). The budget
+    is at least one iteration and one CPU second.
     """
-    opts = {**_COMMON, "ipopt.max_iter": max_iter, "ipopt.max_cpu_time": max_cpu_time_s,
-            "ipopt.tol": tol,
+    opts = {**_COMMON, "ipopt.max_iter": max(int(max_iter), 1),
+            "ipopt.max_cpu_time": max(max_cpu_time_s, 1.0), "ipopt.tol": tol,
             # Measured on verona-like: adaptive 75 iterations (3D) / 43 (1D), monotone 239 / >400.
             "ipopt.mu_strategy": "adaptive",
             "ipopt.bound_push": bound_push, "ipopt.bound_frac": bound_push}
-    if mu_max is not None:
-        opts["ipopt.mu_max"] = mu_max
+    if tr.model.name == "1d":
+        opts["ipopt.mu_max"] = _MU_MAX_1D
     if acceptable_tol is not None:
         opts |= {"ipopt.acceptable_tol": acceptable_tol, "ipopt.acceptable_iter": 5}
-    return opts
+    return NlpSolver(f"ocp_{tr.model.name}_{tr.layout.n_intervals}", tr, opts)
 
 
-def horizon_options(*, max_iter: int, max_wall_time_s: float, tol: float,
-                    acceptable_iter: int, start: dict[str, Any]) -> dict[str, Any]:
-    """IPOPT options of one horizon attempt (`start`: `HORIZON_WARM` or `HORIZON_COLD`)."""
-    return {**_COMMON, "ipopt.max_iter": max_iter, "ipopt.tol": tol,
-            "ipopt.acceptable_tol": 10 * tol, "ipopt.acceptable_iter": acceptable_iter,
-            "ipopt.max_wall_time": max(max_wall_time_s, 1e-3),
-            **{f"ipopt.{k}": v for k, v in start.items()}}
+def horizon_solver(tr: Transcription, name: str, *, warm: bool, max_iter: int,
+                   max_wall_time_s: float, tol: float, acceptable_iter: int) -> NlpSolver:
+    """The solver of one kind of horizon attempt: `warm` from the previous solution
+    (`_HORIZON_WARM`), else from the plan (`_HORIZON_COLD`)."""
+    start = _HORIZON_WARM if warm else _HORIZON_COLD
+    return NlpSolver(name, tr, {
+        **_COMMON, "ipopt.max_iter": max_iter, "ipopt.tol": tol,
+        "ipopt.acceptable_tol": 10 * tol, "ipopt.acceptable_iter": acceptable_iter,
+        "ipopt.max_wall_time": max(max_wall_time_s, 1e-3),
+        **{f"ipopt.{k}": v for k, v in start.items()}})

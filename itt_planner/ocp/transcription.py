@@ -43,9 +43,10 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from itt_planner.ocp.codegen import compiled
 from itt_planner.model.conditions import GRAVITY_MPS2
-from itt_planner.model.dynamics import PARAMS, ROAD, SpatialModel, rk4_step
+from itt_planner.model.dynamics import SpatialModel, rk4_step
+from itt_planner.model.params import PARAMS, ROAD
+from itt_planner.ocp.codegen import compiled
 
 #: Terminal data of the soft terminal treatment: [E_n target, v target, v weight
 #: (s/(m/s)^2), v price (s/(m/s): the change of the time to go per m/s carried over the
@@ -91,7 +92,8 @@ class Layout:
 
     def x_index(self, k: int | np.ndarray, i: int | np.ndarray) -> np.ndarray:
         """Position of state i of node k in the decision vector."""
-        return np.asarray(k) * self.stage + np.asarray(i)
+        index: np.ndarray = np.asarray(k) * self.stage + np.asarray(i)
+        return index
 
     def split(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Numeric decision vector -> X (nx x N+1), U (nu x N), S (ns x N)."""
@@ -270,6 +272,9 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
                         ca.vec(v_to / ds_k), ca.vec(-v_from / ds_k))
     off_p, minus_one = nx * nz * n, nx * nz * n + n_path * nx * (n + 1)
     off_acc = minus_one + 1
+    kk: np.ndarray  # index grids of the triplets below (their shapes vary)
+    rr: np.ndarray
+    cc: np.ndarray
     kk, rr, cc = np.meshgrid(k, np.arange(nx), np.arange(nz), indexing="ij")
     trip = [(kk * nx + rr, kk * st + cc, kk * nx * nz + cc * nx + rr)]  # dF/dz
     kk, rr = np.meshgrid(k, np.arange(nx), indexing="ij")

@@ -12,7 +12,7 @@ braked to 0.5 m/s and then "accelerated" to 258 m/s within 10 m came out as
   transcription's RK4 - on the course's own road data (slope, curvature and heading of
   the course grid, not the mesh's interval means) and with the exact, unsmoothed E3
   (`max(W_n, 0)`, `|v - V_w|`). E9 keeps the model's softplus switch at CP
-  (`model.E9_SHARPNESS_W`): it is part of the model, not of the transcription, and
+  (`model.dynamics.E9_SHARPNESS_W`): it is part of the model, not of the transcription, and
   with the exact kink a plan that rides at CP for half an hour differs by kJ (the
   softplus depletes ~3.5 W at exactly CP). The step is adaptive with a cap
   (`_MAX_STEP_M`) so that no mesh interval's power can be stepped over. Speed starts
@@ -39,14 +39,15 @@ import casadi as ca
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.course.geometry import Course
-from itt_planner.ocp.mesh import road_data
-from itt_planner.model.dynamics import E9_SHARPNESS_W, ModelParams, SpatialModel, rk4_step
-from itt_planner.ocp.guess import PLAN_ARRAYS
-from itt_planner.ocp.plan import Plan
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.model.dynamics import E9_SHARPNESS_W, SpatialModel, rk4_step
+from itt_planner.model.params import ModelParams
 from itt_planner.model.rider import Rider
 from itt_planner.model.wprime import WPrimeModel, e_n_rate
+from itt_planner.ocp.guess import PLAN_ARRAYS
+from itt_planner.ocp.mesh import road_data
+from itt_planner.ocp.plan import Plan
 
 #: Substeps of the fine RK4 of the lateral check, per transcription substep.
 _FINE_FACTOR = 16
@@ -225,4 +226,5 @@ def _interval_defects(plan: Plan, course: Course, rider: Rider, conditions: Cond
     n = plan.n_nodes - 1
     fine = rk4_step(model, substeps * _FINE_FACTOR).map(n)
     x_end = np.asarray(fine(x[:, :-1], u, road, ca.repmat(par, 1, n))[0])
-    return x_end - x[:, 1:]
+    defect: np.ndarray = x_end - x[:, 1:]
+    return defect

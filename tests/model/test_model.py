@@ -9,15 +9,10 @@ import numpy as np
 import pytest
 
 from itt_planner.model.conditions import Conditions
-from itt_planner.model.dynamics import (
-    PARAMS,
-    ROAD,
-    ModelParams,
-    build_1d,
-    build_3d,
-    steady_speed_mps,
-)
+from itt_planner.model.dynamics import build_1d, build_3d
+from itt_planner.model.params import PARAMS, ROAD, ModelParams
 from itt_planner.model.rider import PRESETS
+from itt_planner.model.steady import steady_speed_mps
 
 
 def _x3d(v: float, w_n: float) -> np.ndarray:
@@ -93,8 +88,8 @@ from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 from itt_planner.course.builder import build_course  # noqa: E402
-from itt_planner.model.dynamics import speed_bound_mps  # noqa: E402
 from itt_planner.model.rider import Rider  # noqa: E402
+from itt_planner.model.steady import speed_bound_mps  # noqa: E402
 from itt_planner.ocp.guess import initial_guess, speed_guess  # noqa: E402
 
 plausible_riders = st.builds(

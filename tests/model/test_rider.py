@@ -79,8 +79,8 @@ def test_invalid_cornering_and_drivetrain_fields(tmp_path: Path, text: str, fiel
 
 
 def test_lateral_limit_is_the_lower_of_grip_and_rider() -> None:
-    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
-    from itt_planner.model.dynamics import PARAMS, ModelParams, lateral_limit_mps2  # noqa: PLC0415
+    from itt_planner.model.conditions import Conditions
+    from itt_planner.model.params import PARAMS, ModelParams, lateral_limit_mps2
 
     assert lateral_limit_mps2(Rider(), Conditions()) == pytest.approx(9.81)
     timid = Rider(max_lateral_accel_mps2=4.0)

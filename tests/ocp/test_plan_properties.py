@@ -72,7 +72,6 @@ def _check(spec: dict, rider: Rider, model: str) -> None:
         assert plan.finish_time_s > 0
     else:
         assert not plan.meta["success"]
-        assert plan.solver_status != "Solve_Succeeded"
 
 
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])

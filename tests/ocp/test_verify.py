@@ -10,9 +10,11 @@ import pytest
 
 from itt_planner.course.builder import build_course
 from itt_planner.model.conditions import Conditions
-from itt_planner.model.dynamics import ModelParams, build_1d
+from itt_planner.model.dynamics import build_1d
+from itt_planner.model.params import ModelParams
 from itt_planner.model.rider import Rider
-from itt_planner.ocp.course_problem import OcpSettings, solve_plan
+from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.ocp.plan import Plan
 from itt_planner.ocp.solver import PlanStatus
 from itt_planner.ocp.transcription import transcribe
@@ -89,7 +91,7 @@ def test_rest_and_sprint_is_flagged_and_infeasible(hill_plan: Plan) -> None:
     par = ModelParams(RIDER, Conditions()).vector()
     road = np.array([[0.0], [0.0], [0.0], [10.0]])
     w = tr.layout.join(np.array([[0.5, 258.0], [1.0, 1.0], [1.0, 0.9]]), np.zeros((1, 1)))
-    import casadi as ca  # noqa: PLC0415
+    import casadi as ca
 
     g = np.asarray(ca.Function("g", [tr.nlp["x"], tr.nlp["p"]], [tr.nlp["g"]])(
         w, tr.params(road, par))).ravel()
@@ -98,7 +100,7 @@ def test_rest_and_sprint_is_flagged_and_infeasible(hill_plan: Plan) -> None:
 
 def test_speed_bound_keeps_plans_physical(hill_plan: Plan) -> None:
     """v_max from physics: far above any speed of the plan, far below the artefact."""
-    from itt_planner.model.dynamics import speed_bound_mps  # noqa: PLC0415
+    from itt_planner.model.steady import speed_bound_mps
 
     bound = speed_bound_mps(RIDER, Conditions(), float(np.tan(HILL.beta_rad.min())))
     assert hill_plan.v_mps.max() < 0.8 * bound < 50.0
@@ -117,9 +119,9 @@ def test_3d_plan_lateral_check() -> None:
     assert plan.converged, plan.meta["attempts"]
     ver = plan.meta["verification"]
     assert ver["verified"] and ver["max_roll_defect_rad"] < 0.02
-    from itt_planner.model.wprime import WPrimeModel  # noqa: PLC0415
-    from itt_planner.ocp.course_problem import _model  # noqa: PLC0415
+    from itt_planner.model.wprime import WPrimeModel
+    from itt_planner.ocp.course_nlp import spatial_model
 
     bad = dataclasses.replace(plan, u_delta=plan.u_delta + 2.0)
-    again = verify_plan(bad, course, RIDER, model=_model("3d", WPrimeModel.SKIBA))
+    again = verify_plan(bad, course, RIDER, model=spatial_model("3d", WPrimeModel.SKIBA))
     assert not again.verified and again.worst in ("lateral", "heading", "roll")

@@ -1,0 +1,100 @@
+"""The simple bounds of both OCPs, written once: C11-C14 and the speed range per node.
+
+The full-course problem (`course_nlp`) and the receding horizon (`horizon`) bound the
+same states the same way; what differs is passed in: the node positions, the initial
+state the first node is fixed at, the speed cap (the horizon adds the plan's corner
+speeds, `horizon_start.corner_speed_cap`) and the W' the finish must keep (C12, the
+full-course problem's `e_final_min`). A state a model does not have is skipped (`phi`
+exists in the full 3D model only, the lateral states not in the 1D model).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from itt_planner.course.geometry import Course
+from itt_planner.model.conditions import Conditions
+from itt_planner.model.dynamics import SpatialModel
+from itt_planner.model.rider import Rider
+from itt_planner.model.steady import speed_bound_mps
+from itt_planner.ocp.transcription import Layout
+
+#: Lowest speed the NLP allows (keeps 1/s_dot finite), m/s.
+V_MIN_MPS = 0.5
+#: Bounds on the normalised rates u (model.md C13/C14 note: loose, for robustness).
+U_DELTA_MAX = 20.0
+U_W_MAX = 50.0
+#: |bound| of the normalised commands W_n (C13) and delta_n (C14).
+_COMMAND_MAX = 1.0
+#: Loose bounds (rad) on the relative heading and the lean: they keep trial points of
+#: the solver in the range where the model is meaningful and are never active at a
+#: solution (grip, C16, bounds the lean to ~atan(mu_y) = 0.79 rad on a dry road).
+_ALPHA_MAX_RAD = 1.0
+_PHI_MAX_RAD = 1.2
+_U_MAX = {"u_delta": U_DELTA_MAX, "u_w": U_W_MAX}
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """Simple bounds per node (states, `nx x N+1`) and per interval (controls, `nu x N`).
+
+    The first node is fixed: `lbx[:, 0] == ubx[:, 0]` is the initial state, clipped into
+    the other bounds (a rider measured off the road starts on its edge).
+    """
+
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbu: np.ndarray
+    ubu: np.ndarray
+
+    @property
+    def x0(self) -> np.ndarray:
+        """The (clipped) initial state."""
+        return self.lbx[:, 0]
+
+    def decision(self, layout: Layout) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) bounds of the whole decision vector of `layout`: slacks of the
+        softened constraints (if any) are >= 0."""
+        n, ns = layout.n_intervals, layout.ns
+        return (layout.join(self.lbx, self.lbu, np.zeros((ns, n)), 0.0),
+                layout.join(self.ubx, self.ubu, np.full((ns, n), np.inf), np.inf))
+
+
+def speed_limit_mps(course: Course, nodes: np.ndarray, rider: Rider, conditions: Conditions,
+                    v0_mps: float) -> float:
+    """Physics' upper speed bound over the stretch of `nodes` (`model.speed_bound_mps` on
+    the steepest descent there, issue 18): no physical ride gets faster, so it only keeps
+    integration artefacts out."""
+    inside = (course.s_m >= nodes[0] - course.ds_m) & (course.s_m <= nodes[-1] + course.ds_m)
+    steepest = float(np.tan(np.min(course.beta_rad[inside], initial=0.0)))
+    return speed_bound_mps(rider, conditions, steepest, start_mps=v0_mps)
+
+
+def simple_bounds(model: SpatialModel, course: Course, nodes: np.ndarray, x0: np.ndarray, *,
+                  margin_m: float, v_max_mps: float | np.ndarray,
+                  e_final_min: float = 0.0) -> Bounds:
+    """C11 (road edges less `margin_m`), C12 (0 <= E_n <= 1, and >= `e_final_min` at
+    the last node), C13/C14 (|W_n|, |delta_n| <= 1, the rates u within `_U_MAX`),
+    `V_MIN_MPS <= v <= v_max_mps` (per node or one value) and the loose angle bounds;
+    the first node fixed at `x0` clipped into them."""
+    n = len(nodes)
+    lbx, ubx = np.full((model.nx, n), -np.inf), np.full((model.nx, n), np.inf)
+
+    def bound(state: str, lower: float | np.ndarray, upper: float | np.ndarray) -> None:
+        if state in model.states:
+            lbx[model.index(state)], ubx[model.index(state)] = lower, upper
+
+    bound("n", -(course.at("width_right_m", nodes) - margin_m),  # C11
+          course.at("width_left_m", nodes) - margin_m)
+    bound("alpha", -_ALPHA_MAX_RAD, _ALPHA_MAX_RAD)
+    bound("phi", -_PHI_MAX_RAD, _PHI_MAX_RAD)
+    bound("v", V_MIN_MPS, v_max_mps)
+    bound("w_n", -_COMMAND_MAX, _COMMAND_MAX)  # C13
+    bound("delta_n", -_COMMAND_MAX, _COMMAND_MAX)  # C14
+    bound("e_n", 0.0, 1.0)  # C12
+    lbx[model.index("e_n"), -1] = e_final_min
+    lbx[:, 0] = ubx[:, 0] = np.clip(x0, lbx[:, 0], ubx[:, 0])
+    u_max = np.array([_U_MAX[name] for name in model.controls])[:, None]
+    return Bounds(lbx, ubx, np.repeat(-u_max, n - 1, axis=1), np.repeat(u_max, n - 1, axis=1))

@@ -1,0 +1,170 @@
+"""The full-course OCP on one mesh: its NLP and numeric data, and a solution as a `Plan`.
+
+`course_nlp` builds what one solver run needs (model.md section 5): the transcription
+of the model over the mesh's node count (direct multiple shooting with RK4,
+`transcription.transcribe`; built and compiled once per node count and process), the
+parameter vector (road data per interval, the rider and the conditions), the simple
+bounds C11-C14 (`bounds.simple_bounds`, shared with the receding horizon) and a
+physically sensible guess (`guess.initial_guess`, or an existing plan moved onto the
+mesh, `guess.plan_guess`). `to_plan` turns a solver's iterate into a `Plan`.
+
+Boundary conditions: upright on the centre line, `W_n = W_C/W_max`, `E_n = 1`, end state
+free (or the rider's state at a `Start`). Launch: the start speed is raised from
+`start_speed_mps` just enough that the start power's tyre force uses at most
+`LAUNCH_GRIP` of the grip, which keeps wet-road starts feasible (model.md, launch note).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from itt_planner.course.geometry import Course
+from itt_planner.errors import SolveError
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.model.dynamics import CONTROLS_3D, STATES_3D, SpatialModel, build_model
+from itt_planner.model.params import ModelParams
+from itt_planner.model.rider import Rider
+from itt_planner.model.wprime import WPrimeModel
+from itt_planner.ocp.bounds import V_MIN_MPS, simple_bounds, speed_limit_mps
+from itt_planner.ocp.course_settings import OcpSettings, Start
+from itt_planner.ocp.guess import LAUNCH_GRIP, PLAN_ARRAYS, initial_guess, plan_guess
+from itt_planner.ocp.mesh import road_data
+from itt_planner.ocp.plan import Plan
+from itt_planner.ocp.solver import PlanStatus
+from itt_planner.ocp.transcription import Transcription, transcribe
+
+#: Interval length (m) above which the RK4 integrator takes several substeps.
+_SUBSTEP_M = 4.0
+
+
+def substeps_for(h_max_m: float) -> int:
+    """RK4 substeps so that no substep exceeds `_SUBSTEP_M` (roll time constant ~0.45 s)."""
+    return max(1, math.ceil(h_max_m / _SUBSTEP_M - 1e-9))
+
+
+def mesh_substeps(model: str, nodes: np.ndarray) -> int:
+    """RK4 substeps of `model` on the mesh `nodes` (the 1D model has no roll mode: 1)."""
+    return substeps_for(float(np.max(np.diff(nodes)))) if model == "3d" else 1
+
+
+@lru_cache(maxsize=16)
+def spatial_model(kind: str, wprime_model: WPrimeModel) -> SpatialModel:
+    """The model `kind` ("3d" or "1d") with `wprime_model` (built once per process)."""
+    return build_model(kind, wprime_model)
+
+
+@lru_cache(maxsize=4)
+def _transcription(kind: str, wprime_model: WPrimeModel, n_intervals: int, substeps: int,
+                   jit: bool) -> Transcription:
+    """The NLP of one node count (built once per process)."""
+    return transcribe(spatial_model(kind, wprime_model), n_intervals, substeps=substeps,
+                      compile_c=jit)
+
+
+def start_speed(rider: Rider, conditions: Conditions, settings: OcpSettings) -> float:
+    """Start speed: at least `start_speed_mps`, and enough for the start power's grip."""
+    grip_force = LAUNCH_GRIP * conditions.mu_x * GRAVITY_MPS2 * rider.mass_kg
+    return max(settings.start_speed_mps, rider.critical_power_w / grip_force, V_MIN_MPS)
+
+
+def check_inputs(course: Course, settings: OcpSettings) -> None:
+    """Reject inputs no solver can use.
+
+    Raises:
+        SolveError: status "invalid_input": the road is narrower than the bike anywhere.
+    """
+    room = course.width_left_m + course.width_right_m - 2 * settings.margin_m
+    if np.any(room <= 0):
+        i = int(np.argmin(room))
+        msg = (f"course {course.name!r}: road at s = {course.s_m[i]:.0f} m is "
+               f"{course.width_left_m[i] + course.width_right_m[i]:.2f} m wide, narrower than "
+               f"the bike and margins ({2 * settings.margin_m:.2f} m)")
+        raise SolveError(msg, status="invalid_input")
+
+
+@dataclass(frozen=True, eq=False)
+class CourseNlp:
+    """One mesh's NLP with its numeric data: parameters, bounds, default guess."""
+
+    tr: Transcription
+    nodes: np.ndarray
+    p: np.ndarray
+    lbw: np.ndarray
+    ubw: np.ndarray
+    x_guess: np.ndarray
+    u_guess: np.ndarray
+
+    @property
+    def w_guess(self) -> np.ndarray:
+        """The guess as a decision vector."""
+        return self.tr.layout.join(self.x_guess, self.u_guess)
+
+
+def course_nlp(course: Course, rider: Rider, conditions: Conditions, settings: OcpSettings,
+               model: str, nodes: np.ndarray, v0: float, start: Start | None,
+               guess: Plan | None) -> CourseNlp:
+    """The NLP of `model` on the mesh `nodes`, launched at `v0` (or from `start`), with
+    the default guess or `guess` moved onto the mesh."""
+    tr = _transcription(model, settings.wprime_model, len(nodes) - 1,
+                        mesh_substeps(model, nodes), settings.jit)
+    spm = tr.model
+    par = ModelParams(rider, conditions, settings.w_delta, settings.w_power).vector()
+    x_guess, u_guess = initial_guess(spm, course, nodes, rider, conditions, v0)
+    x0 = x_guess[:, 0].copy()
+    if start is not None:
+        for name, value in start.state.items():
+            if name in spm.states:
+                x0[spm.index(name)] = value
+    if guess is not None:
+        x_guess, u_guess = plan_guess(spm, guess, nodes, x_guess, u_guess)
+    v_max = speed_limit_mps(course, nodes, rider, conditions, float(x0[spm.index("v")]))
+    bounds = simple_bounds(spm, course, nodes, x0, margin_m=settings.margin_m,
+                           v_max_mps=v_max, e_final_min=settings.e_final_min)
+    lbx, ubx = bounds.lbx, bounds.ubx
+    if start is not None:
+        # The guess's W' re-anchored at the start's: a rider off the plan has a deficit
+        # (or a surplus) the whole rest of the guess would otherwise ignore.
+        ie = spm.index("e_n")
+        x_guess[ie] = x_guess[ie] - (x_guess[ie, 0] - lbx[ie, 0])
+    x_guess[:, 0] = lbx[:, 0]
+    lbw, ubw = bounds.decision(tr.layout)
+    return CourseNlp(tr, nodes, tr.params(road_data(course, nodes), par), lbw, ubw,
+                     np.clip(x_guess, lbx, ubx), u_guess)
+
+
+def to_plan(tr: Transcription, w: np.ndarray, p: np.ndarray, lam_g: np.ndarray,
+            nodes: np.ndarray, rider: Rider, *, status: str, iterations: int,
+            solve_time_s: float, meta: dict[str, Any]) -> Plan:
+    """Turn a numeric NLP solution (primal `w`, constraint multipliers `lam_g`) into a
+    `Plan` (SI units, lateral arrays 0 for 1D); `status` is the solver's raw status,
+    `Plan.status` its class (`solver.PlanStatus.of`) until verification says otherwise."""
+    spm, lay = tr.model, tr.layout
+    x, u, _ = lay.split(w)
+    # The multiplier of the continuity gap `F(x_k) - x_{k+1}` is d(objective)/d(x_{k+1}):
+    # the adjoint. Node 0 is fixed by its bounds; it takes node 1's value.
+    lam_v = lam_g[: lay.nx * lay.n_intervals].reshape(lay.n_intervals, lay.nx)[:, spm.index("v")]
+    dt, y = (np.asarray(a) for a in tr.evaluate(w, p))
+    t = np.concatenate([[0.0], np.cumsum(dt.ravel())])
+    zeros = np.zeros(len(nodes))
+
+    def state(name: str) -> np.ndarray:
+        return x[spm.index(name)] if name in spm.states else zeros
+
+    def control(name: str) -> np.ndarray:
+        row = u[spm.controls.index(name)] if name in spm.controls else zeros[:-1]
+        return np.append(row, row[-1])  # controls hold over intervals; repeat the last
+
+    arrays = ({PLAN_ARRAYS[name]: state(name) for name in STATES_3D}
+              | {PLAN_ARRAYS[name]: control(name) for name in CONTROLS_3D})
+    return Plan(
+        model=spm.name, s_m=np.asarray(nodes, float), t_s=t, **arrays, power_w=y[0],
+        w_prime_j=state("e_n") * rider.w_prime_j, ax_mps2=y[1], ay_mps2=y[2],
+        friction_use=y[3], costate_v_s_per_mps=np.concatenate([lam_v[:1], lam_v]),
+        solver_status=status, iterations=iterations,
+        solve_time_s=solve_time_s, meta=meta, status=PlanStatus.of(status).value,
+    )

@@ -1,0 +1,122 @@
+"""What a receding-horizon replan is asked for (`HorizonSettings`: window, terminal
+treatment, budgets) and what it returns (`HorizonSolution`: the profiles over the window,
+its outcome and the predicted finish). Why each setting is what it is: `horizon`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:  # the solver imports CasADi; settings stay light for the live engine
+    from itt_planner.ocp.solver import PlanStatus
+
+#: Status of a budget-capped iterate that passed `HorizonPlanner.feasible` (success=True).
+SUBOPTIMAL_FEASIBLE = "Suboptimal_Feasible"
+
+
+@dataclass(frozen=True)
+class HorizonSettings:
+    """Size, terminal treatment and budgets of the receding-horizon OCP.
+
+    Attributes:
+        horizon_m: length of the window ahead of the rider.
+        n_intervals: fixed number of shooting intervals over the window.
+        substeps: RK4 substeps per interval.
+        h_min_m, h_max_m: finest and coarsest window intervals (before the fixed node
+            count rescales them).
+        near_grade: how fast the spacing may grow with the distance ahead of the
+            rider (m per m), so the first intervals (the advice now) are fine.
+        slack_weight: penalty per unit of path-constraint slack (s).
+        v_weight: terminal speed penalty (s per (m/s)^2).
+        max_iter, max_wall_time_s: hard budget of one replan.
+        tol: IPOPT tolerance (a replan needs less accuracy than the plan). 1e-4 since
+            the NLP is unscaled: with 1e-3 the closed loop on the technical test course
+            finished 1.3 % behind the optimum (tests/sim/test_simulate.py), at the same
+            iteration counts over the verona-like sweep.
+        acceptable_iter: IPOPT stops after this many consecutive iterates within
+            10 x `tol` ("Solved_To_Acceptable_Level", counted as success): the advice
+            does not change measurably in the last digits, the latency ~2x.
+        eps_wn, sharpness_w: smoothing widths of max(W_n, 0) and of the E9 switch at
+            critical power (`model.dynamics`) in the horizon model.
+        w_delta, w_power: objective weights w_1, w_2 (model.md section 5).
+        warm_multipliers: also shift the previous multipliers (measured neutral).
+        margin_m: distance kept from each road edge (C11).
+        feasible_tol: a budget-capped iterate is returned as success
+            ("Suboptimal_Feasible") when its continuity gaps, bounds and path-constraint
+            residuals are within this (state units: m, rad, m/s, E_n fractions).
+        grip_tol: ... and its path-constraint slacks (grip C16, pedalling C15) within
+            this beyond what the measured initial state already uses.
+        warm_share: share of `max_wall_time_s` given to the warm attempt; the rest is
+            the cold retry's (from the plan) when the warm attempt is not usable.
+        reset_after_failures: after this many unusable replans in a row the last good
+            solution is dropped and the next replan starts from the plan.
+        corner_cap_use, corner_cap_tol_mps, corner_cap_brake_g: where the plan's friction
+            use is at least `corner_cap_use`, the horizon's speed is capped at the plan's
+            plus `corner_cap_tol_mps`, or what braking at `corner_cap_brake_g` g from the
+            rider's speed reaches (`corner_speed_cap`).
+    """
+
+    horizon_m: float = 1000.0
+    n_intervals: int = 60
+    substeps: int = 1
+    h_min_m: float = 2.5
+    h_max_m: float = 30.0
+    near_grade: float = 0.1
+    slack_weight: float = 100.0
+    v_weight: float = 1.0
+    max_iter: int = 60
+    max_wall_time_s: float = 0.8
+    tol: float = 1e-4
+    acceptable_iter: int = 2
+    margin_m: float = 0.5
+    eps_wn: float = 1e-3
+    sharpness_w: float = 5.0
+    w_delta: float = 0.01
+    w_power: float = 0.01
+    warm_multipliers: bool = False
+    feasible_tol: float = 1e-3
+    grip_tol: float = 0.02
+    warm_share: float = 0.6
+    reset_after_failures: int = 3
+    corner_cap_use: float = 0.9
+    corner_cap_tol_mps: float = 0.5
+    corner_cap_brake_g: float = 0.3
+
+
+@dataclass(frozen=True, eq=False)
+class HorizonSolution:
+    """One replan: profiles over the window (arc length `s_m` on the course, SI units).
+
+    `t_s` starts at 0 at the rider's position. `phi_rad` is the steady lean of the
+    horizon model. `predicted_finish_s` is the elapsed time from the ride start at the
+    finish line: elapsed now + horizon time + the plan's time from the horizon end to
+    the finish. `w_prime_finish_j` likewise adds the plan's W' change over the rest of
+    the course.
+
+    `success`: the profiles are valid advice. `outcome` (`solver.PlanStatus`): how the
+    last solver attempt ended, `converged`, `capped` (with `success`: a capped iterate
+    that passed the feasibility check, `status` "Suboptimal_Feasible") or `failed`.
+    `status`: the raw solver statuses, the attempts' joined by "; " after a failure.
+    """
+
+    s_m: np.ndarray
+    n_m: np.ndarray
+    v_mps: np.ndarray
+    power_w: np.ndarray
+    phi_rad: np.ndarray
+    t_s: np.ndarray
+    w_prime_j: np.ndarray
+    success: bool
+    status: str
+    outcome: PlanStatus
+    iterations: int
+    solve_time_s: float
+    predicted_finish_s: float
+    w_prime_finish_j: float
+
+    @property
+    def target_power_w(self) -> float:
+        """Power to ride now: the first interval's end (the start holds the measured one)."""
+        return float(self.power_w[1])

@@ -1,0 +1,143 @@
+"""Where a receding-horizon replan starts: the window's nodes, the rider's estimate as the
+model's initial state, the plan as a guess, and the simple bounds over the window.
+
+Everything here is numeric and fixed by the course, the rider, the plan and the settings
+(`HorizonWindow`); the solver, the warm start and the feasibility check are
+`horizon.HorizonPlanner`'s. Why the window and the bounds look as they do: `horizon`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from itt_planner.course.geometry import Course
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.model.dynamics import SpatialModel
+from itt_planner.model.rider import Rider
+from itt_planner.model.state import RiderState
+from itt_planner.ocp.bounds import U_W_MAX, V_MIN_MPS, Bounds, simple_bounds, speed_limit_mps
+from itt_planner.ocp.guess import PLAN_ARRAYS, plan_spacing_cap
+from itt_planner.ocp.horizon_settings import HorizonSettings
+from itt_planner.ocp.mesh import target_spacing
+from itt_planner.ocp.plan import Plan
+
+
+class HorizonWindow:
+    """The numeric set-up of replans on one course for one rider and one plan."""
+
+    def __init__(self, model: SpatialModel, course: Course, rider: Rider, plan: Plan,
+                 conditions: Conditions, settings: HorizonSettings) -> None:
+        self.model, self.course, self.rider, self.plan = model, course, rider, plan
+        self.conditions, self.settings = conditions, settings
+        # Finer where the plan is slow (the launch): `dv/ds = a/v` is stiff there (issue 18).
+        self._spacing = target_spacing(course, settings.h_min_m, settings.h_max_m,
+                                       h_cap_m=plan_spacing_cap(course, plan, rider, conditions))
+
+    def nodes(self, s_m: float) -> np.ndarray:
+        """The fixed-count node positions of the window starting at `s_m`.
+
+        Equal steps of the cumulative node density `1/h`, with `h` the course's mesh
+        spacing capped by `h_min_m + near_grade * (distance ahead)`. A window cut short
+        by the finish has more nodes than that density asks for: the surplus is spread
+        evenly (an added uniform density) instead of shrinking every interval alike,
+        which left 0.85 m first intervals in a 150 m window, too short to steer from a
+        measured line (a grip violation of 3x at the first node in test_horizon).
+        """
+        st, c = self.settings, self.course
+        end = min(s_m + st.horizon_m, c.length_m)
+        s_m = min(s_m, end - 1.0)
+        grid = np.concatenate([[s_m], c.s_m[(c.s_m > s_m) & (c.s_m < end)], [end]])
+        h = np.minimum(np.interp(grid, c.s_m, self._spacing),
+                       st.h_min_m + st.near_grade * (grid - s_m))
+        dens = 1.0 / h
+        if end - s_m < st.horizon_m - 1.0:
+            surplus = st.n_intervals - float(np.sum(0.5 * (dens[1:] + dens[:-1]) * np.diff(grid)))
+            dens = dens + max(surplus, 0.0) / (end - s_m)
+        cum = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * np.diff(grid))])
+        nodes: np.ndarray = np.interp(np.linspace(0.0, cum[-1], st.n_intervals + 1), cum, grid)
+        nodes[0], nodes[-1] = s_m, end
+        return nodes
+
+    def initial_state(self, state: RiderState, s_m: float) -> np.ndarray:
+        """State vector of the horizon model from the estimate (steering: from the plan)."""
+        r, m = self.rider, self.model
+        x0 = np.zeros(m.nx)
+        theta = float(self.course.at("theta_rad", s_m))
+        heading = state.heading_rad if math.isfinite(state.heading_rad) else theta
+        alpha = math.remainder(heading - theta, 2 * math.pi)
+        v = max(float(state.speed_mps), 1.0) if math.isfinite(state.speed_mps) else 1.0
+        power = float(state.power_w) if math.isfinite(state.power_w) else 0.0
+        w_prime = float(np.clip(state.w_prime_j, 0.0, r.w_prime_j)) if math.isfinite(
+            state.w_prime_j) else 0.0
+        # Above CP, W' drains while the power ramps down at the fastest rate the NLP
+        # allows (C13 with the E6 rate): (P - CP)^2 / (2 rate) must fit into the W' left,
+        # or W' >= 0 (C12, a hard bound) makes the NLP infeasible - a rider measured at
+        # W' = 0 while riding far above CP (the estimate says: exhausted) would get no
+        # advice at all. Half of that margin covers the E9 smoothing and the RK4 step.
+        rate_wps = r.power_rate_max_wps * U_W_MAX
+        power = min(power, r.critical_power_w + math.sqrt(rate_wps * w_prime))
+        # No more than the tyres transmit at this speed (C16, pedalling alone): a power
+        # reading beyond it (a sprint measured at walking pace) would otherwise break the
+        # transcription's acceleration bound in the first interval.
+        power = min(power, self.conditions.mu_x * GRAVITY_MPS2 * r.mass_kg * v
+                    / r.drivetrain_efficiency)
+        if power >= 0:
+            w_n = power / r.max_power_w
+        else:
+            w_n = power / (self.conditions.mu_x * GRAVITY_MPS2 * r.mass_kg * v)
+        x0[m.index("n")] = state.n_m if math.isfinite(state.n_m) else 0.0
+        x0[m.index("alpha")] = np.clip(alpha, -0.5, 0.5)
+        x0[m.index("v")] = v
+        x0[m.index("w_n")] = np.clip(w_n, -1.0, 1.0)
+        x0[m.index("e_n")] = np.clip(w_prime / r.w_prime_j, 0.0, 1.0)
+        x0[m.index("delta_n")] = self._plan_delta_n(np.array([s_m]))[0]
+        return x0
+
+    def _plan_delta_n(self, nodes: np.ndarray) -> np.ndarray:
+        if self.plan.model == "3d":
+            return self.plan.at("delta_n", nodes)
+        # A 1D plan: the steering of the steady turn along the centre line.
+        kappa = self.course.at("kappa_per_m", nodes)
+        return np.arctan(self.rider.wheelbase_m * kappa) / self.rider.steer_max_rad
+
+    def plan_guess(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The plan on `nodes` as the horizon model's states and controls."""
+        m, plan = self.model, self.plan
+        x = np.zeros((m.nx, len(nodes)))
+        for name in ("n", "alpha", "v", "w_n", "e_n"):
+            x[m.index(name)] = plan.at(PLAN_ARRAYS[name], nodes)
+        x[m.index("delta_n")] = self._plan_delta_n(nodes)
+        u = np.vstack([plan.at(PLAN_ARRAYS[name], nodes[:-1]) for name in ("u_delta", "u_w")])
+        return x, u
+
+    def bounds(self, nodes: np.ndarray, x0: np.ndarray) -> Bounds:
+        """The simple bounds (`bounds.simple_bounds`) over the window, the speed capped by
+        physics over the window and by the plan's corner speeds (`corner_speed_cap`)."""
+        v0 = float(x0[self.model.index("v")])
+        v_max = np.minimum(self.corner_speed_cap(nodes, v0),
+                           speed_limit_mps(self.course, nodes, self.rider, self.conditions, v0))
+        return simple_bounds(self.model, self.course, nodes, x0,
+                             margin_m=self.settings.margin_m, v_max_mps=v_max)
+
+    def corner_speed_cap(self, nodes: np.ndarray, v0: float) -> np.ndarray:
+        """Upper speed bound per node: the plan's speed where the plan corners at the grip
+        limit (friction use >= `corner_cap_use`), plus `corner_cap_tol_mps`.
+
+        Why: there the speed is set by grip and by leaning in and out, and the plan,
+        solved with the roll dynamics E4-E5, knows what that costs; the steady-lean
+        horizon model does not (it tips into a lean at once), so on its own it planned
+        braking later and entering tight corners 0.5-1 m/s faster than any rider can
+        lean in, and a rider following that ran wide (bench/RESULTS.md). Elsewhere the
+        speed stays free (pacing). The cap never asks for more than braking at
+        `corner_cap_brake_g` g from the rider's speed gives (a rider measured too fast
+        still has a feasible NLP).
+        """
+        st, plan = self.settings, self.plan
+        cap = np.where(plan.at("friction_use", nodes) >= st.corner_cap_use,
+                       plan.at("v_mps", nodes) + st.corner_cap_tol_mps, np.inf)
+        reach = np.sqrt(np.maximum(
+            v0 ** 2 - 2 * st.corner_cap_brake_g * GRAVITY_MPS2 * (nodes - nodes[0]), 0.0))
+        bound: np.ndarray = np.maximum(cap, np.maximum(reach, V_MIN_MPS))
+        return bound

@@ -1,0 +1,137 @@
+"""Plan cache (`ocp.cache`): a hit returns the stored plan without solving; a change of
+the course, rider, conditions, settings, model or plan code misses; a stale or unusable
+file is ignored and replaced; only converged and verified plans are stored."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from itt_planner.course.geometry import Course
+from itt_planner.model.conditions import Conditions
+from itt_planner.model.rider import PRESETS, Rider
+from itt_planner.ocp import cache as plan_cache
+from itt_planner.ocp.cache import load_or_solve, plan_key
+from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.course_settings import OcpSettings
+from itt_planner.ocp.plan import PLAN_ARRAYS, Plan
+from support.courses import straight
+
+COURSE = straight(600.0)
+RIDER = PRESETS["paper"]
+
+
+@pytest.fixture(scope="module")
+def solved() -> Plan:
+    """One real 1D solve of the 600 m straight (about a second)."""
+    plan = solve_plan(COURSE, RIDER, model="1d")
+    assert plan.converged, plan.meta["attempts"]
+    return plan
+
+
+@pytest.fixture
+def solver_calls(monkeypatch: pytest.MonkeyPatch, solved: Plan) -> list[tuple[Any, ...]]:
+    """Replaces the cache's solver by one that records its inputs and returns `solved`."""
+    calls: list[tuple[Any, ...]] = []
+
+    def fake(course: Course, rider: Rider, conditions: Conditions, settings: OcpSettings, *,
+             model: str) -> Plan:
+        calls.append((course.name, rider.name, conditions, settings, model))
+        return solved
+
+    monkeypatch.setattr(plan_cache, "solve_plan", fake)
+    return calls
+
+
+def _files(cache_dir: Path) -> list[Path]:
+    return sorted(cache_dir.glob("*.plan.npz"))
+
+
+def test_hit_returns_the_stored_plan_without_solving(
+        tmp_path: Path, solved: Plan, solver_calls: list[tuple[Any, ...]]) -> None:
+    first = load_or_solve(COURSE, RIDER, model="1d", cache_dir=tmp_path)
+    assert len(solver_calls) == 1 and len(_files(tmp_path)) == 1
+    again = load_or_solve(COURSE, RIDER, model="1d", cache_dir=tmp_path)
+    assert len(solver_calls) == 1  # a hit: no second solve
+    for name in PLAN_ARRAYS:  # the file round-trips every array exactly
+        np.testing.assert_array_equal(getattr(again, name), getattr(solved, name))
+    assert again.status == first.status == "converged"
+    assert again.finish_time_s == pytest.approx(solved.finish_time_s, abs=0.0)
+
+
+@pytest.mark.parametrize("change", [
+    lambda: {"course": straight(650.0)},
+    lambda: {"rider": PRESETS["climber"]},
+    lambda: {"rider": dataclasses.replace(RIDER, critical_power_w=RIDER.critical_power_w + 1)},
+    lambda: {"conditions": Conditions(mu_x=0.6, mu_y=0.6)},
+    lambda: {"settings": OcpSettings(h_max_1d_m=5.0)},
+    lambda: {"model": "3d"},
+], ids=["course", "rider", "rider-cp", "conditions", "settings", "model"])
+def test_any_input_change_misses(tmp_path: Path, solver_calls: list[tuple[Any, ...]],
+                                 change: Callable[[], dict[str, Any]]) -> None:
+    base: dict[str, Any] = {"course": COURSE, "rider": RIDER, "conditions": Conditions(),
+                            "settings": OcpSettings(), "model": "1d"}
+    load_or_solve(cache_dir=tmp_path, **base)
+    other = base | change()
+    assert plan_key(**other) != plan_key(**base)
+    load_or_solve(cache_dir=tmp_path, **other)
+    assert len(solver_calls) == 2
+    assert len(_files(tmp_path)) == 2
+
+
+def test_plan_code_change_misses(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                 solver_calls: list[tuple[Any, ...]]) -> None:
+    """A change of the source of a module that decides a plan (physics, bounds, solver
+    options, ...) never reuses a stored plan."""
+    args = (COURSE, RIDER, Conditions(), OcpSettings(), "1d")
+    key = plan_key(*args)
+    assert len(plan_cache.code_hash()) == 16
+    # Every module the full-course solve runs through is hashed.
+    for name in ("itt_planner.model.dynamics", "itt_planner.ocp.bounds",
+                 "itt_planner.ocp.solver", "itt_planner.ocp.course_nlp",
+                 "itt_planner.ocp.course_problem", "itt_planner.ocp.verify"):
+        assert name in plan_cache.PLAN_CODE_MODULES
+    load_or_solve(*args, cache_dir=tmp_path)
+    monkeypatch.setattr(plan_cache, "code_hash", lambda: "another-model")
+    assert plan_key(*args) != key
+    load_or_solve(*args, cache_dir=tmp_path)
+    assert len(solver_calls) == 2
+
+
+def test_unreadable_file_is_replaced(tmp_path: Path, solved: Plan,
+                                     solver_calls: list[tuple[Any, ...]]) -> None:
+    """A stale file under the plan's key (truncated by a crash, or garbage) is ignored,
+    the plan solved again and the file rewritten whole."""
+    load_or_solve(COURSE, RIDER, model="1d", cache_dir=tmp_path)
+    (path,) = _files(tmp_path)
+    path.write_bytes(b"not a plan")
+    got = load_or_solve(COURSE, RIDER, model="1d", cache_dir=tmp_path)
+    assert len(solver_calls) == 2 and got is solved
+    assert Plan.load(path).finish_time_s == pytest.approx(solved.finish_time_s, abs=0.0)
+    assert not list(tmp_path.glob("*.tmp"))  # written through a temporary file
+
+
+def test_unconverged_file_is_ignored(tmp_path: Path, solved: Plan,
+                                     solver_calls: list[tuple[Any, ...]]) -> None:
+    """A stored plan that is not converged (written by other code) is never returned."""
+    key = plan_key(COURSE, RIDER, Conditions(), OcpSettings(), "1d")
+    path = tmp_path / f"{COURSE.name}_1d_{key}.plan.npz"
+    dataclasses.replace(solved, status="capped").save(path)
+    got = load_or_solve(COURSE, RIDER, model="1d", cache_dir=tmp_path)
+    assert len(solver_calls) == 1 and got.converged
+    assert Plan.load(path).converged  # replaced by the converged solve
+
+
+@pytest.mark.parametrize("status", ["invalid", "capped", "failed"])
+def test_only_converged_plans_are_stored(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                         solved: Plan, status: str) -> None:
+    bad = dataclasses.replace(solved, status=status, meta={**solved.meta, "success": False})
+    monkeypatch.setattr(plan_cache, "solve_plan", lambda *_a, **_k: bad)
+    got = load_or_solve(COURSE, RIDER, model="1d", cache_dir=tmp_path)
+    assert got.status == status  # returned, with its status, for the caller to report
+    assert not _files(tmp_path)
