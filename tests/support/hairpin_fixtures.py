@@ -14,7 +14,7 @@ import pytest
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import PRESETS
 from itt_planner.ocp.cache import load_or_solve
-from itt_planner.ocp.course_problem import OcpSettings
+from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.sim.simulate import hairpin_course, planning_conditions
 
 RIDER = PRESETS["paper"]
