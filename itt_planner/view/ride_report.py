@@ -226,7 +226,7 @@ def ride_setup(trace: RideTrace, course_spec: str | None, rider_spec: str | None
     # Heavy (CasADi): imported when a ride report is actually made.
     from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.course.loader import load_course  # noqa: PLC0415
-    from itt_planner.ocp.course_problem import OcpSettings  # noqa: PLC0415
+    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
     from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
 
