@@ -35,7 +35,8 @@ from itt_planner.cli import app
 from itt_planner.course.loader import load_course
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import PRESETS, load_rider
-from itt_planner.ocp.course_problem import OcpSettings, solve_plan
+from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.sweep import (
     CONVERGED,
     FAILED,
