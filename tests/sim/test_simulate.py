@@ -24,8 +24,9 @@ from itt_planner.live.engine import EngineSettings
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.model.conditions import Conditions
 from itt_planner.ocp.cache import load_or_solve
-from itt_planner.ocp.course_problem import OcpSettings
-from itt_planner.ocp.horizon import HorizonPlanner, HorizonSettings
+from itt_planner.ocp.course_settings import OcpSettings
+from itt_planner.ocp.horizon import HorizonPlanner
+from itt_planner.ocp.horizon_settings import HorizonSettings
 from itt_planner.sim.simulate import (
     Policy,
     RiderBehaviour,
