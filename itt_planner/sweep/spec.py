@@ -37,7 +37,7 @@ from typing import Any
 import yaml
 
 from itt_planner.errors import IttError
-from itt_planner.ocp.course_problem import OcpSettings
+from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.model.rider import PRESETS, Rider
 from itt_planner.model.wprime import WPrimeModel
 
