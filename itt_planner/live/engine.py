@@ -70,7 +70,8 @@ from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
 from itt_planner.model.state import RiderState
 
 if TYPE_CHECKING:
-    from itt_planner.ocp.horizon import HorizonPlanner, HorizonSolution
+    from itt_planner.ocp.horizon import HorizonPlanner
+    from itt_planner.ocp.horizon_settings import HorizonSolution
 
 log = logging.getLogger(__name__)
 
@@ -143,7 +144,8 @@ class PacingEngine:
                  settings: EngineSettings = EngineSettings(),
                  planner: HorizonPlanner | None = None) -> None:
         if planner is None:
-            from itt_planner.ocp.horizon import HorizonPlanner, HorizonSettings
+            from itt_planner.ocp.horizon import HorizonPlanner
+            from itt_planner.ocp.horizon_settings import HorizonSettings
 
             planner = HorizonPlanner(course, rider, plan, conditions=conditions,
                                      settings=HorizonSettings(horizon_m=settings.horizon_m))
