@@ -32,7 +32,8 @@ from itt_planner.course.geometry import Course
 from itt_planner.course.builder import build_course
 from itt_planner.live.engine import EngineSettings, PacingEngine
 from itt_planner.errors import IttError
-from itt_planner.model.dynamics import PARAMS, ModelParams, build_3d
+from itt_planner.model.dynamics import build_3d
+from itt_planner.model.params import PARAMS, ModelParams
 from itt_planner.ocp.plan import Plan
 from itt_planner.model.rider import Rider
 from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
