@@ -101,7 +101,8 @@ def plan_cli(
     """
     from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.course.loader import load_course  # noqa: PLC0415
-    from itt_planner.ocp.course_problem import OcpSettings, solve_plan  # noqa: PLC0415
+    from itt_planner.ocp.course_problem import solve_plan  # noqa: PLC0415
+    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
 
     with errors_to_exit(as_json):
@@ -134,7 +135,7 @@ def compare_riders_cli(
 ) -> None:
     """The three virtual riders x both models: finish, longest descent, sharpest corner."""
     from itt_planner.course.loader import load_course  # noqa: PLC0415
-    from itt_planner.ocp.course_problem import compare_riders  # noqa: PLC0415
+    from itt_planner.ocp.analysis import compare_riders  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         rows = compare_riders(load_course(course))
