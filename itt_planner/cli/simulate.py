@@ -48,7 +48,7 @@ def simulate_cli(
     from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.course.loader import load_course  # noqa: PLC0415
     from itt_planner.live.engine import EngineSettings  # noqa: PLC0415
-    from itt_planner.ocp.course_problem import OcpSettings  # noqa: PLC0415
+    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
     from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
     from itt_planner.sim.simulate import compare_policies, planning_conditions  # noqa: PLC0415
