@@ -101,7 +101,7 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
     figures["physics"] = [physics_check(run, on_course, course) for run in runs]
     plans = []
     if plan_models:
-        from itt_planner.ocp.course_problem import OcpSettings  # noqa: PLC0415  (CasADi OCP, lazy)
+        from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415  (CasADi OCP, lazy)
         from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
 
         figures["plans"] = []
