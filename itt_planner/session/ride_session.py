@@ -101,8 +101,9 @@ def build_engine(config: SessionConfig) -> PacingEngine:
     from itt_planner.course.loader import load_course  # noqa: PLC0415
     from itt_planner.live.course_replan import CourseReplanSettings  # noqa: PLC0415
     from itt_planner.live.engine import EngineSettings, PacingEngine  # noqa: PLC0415
-    from itt_planner.ocp.horizon import HorizonPlanner, HorizonSettings  # noqa: PLC0415
-    from itt_planner.ocp.course_problem import OcpSettings  # noqa: PLC0415
+    from itt_planner.ocp.horizon import HorizonPlanner  # noqa: PLC0415
+    from itt_planner.ocp.horizon_settings import HorizonSettings  # noqa: PLC0415
+    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
     from itt_planner.ocp.plan import Plan  # noqa: PLC0415
     from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
