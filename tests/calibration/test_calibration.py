@@ -25,7 +25,7 @@ from itt_planner.course.builder import build_course
 from itt_planner.course.track_files import Recording
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.model.conditions import Conditions
-from itt_planner.model.dynamics import steady_speed_mps
+from itt_planner.model.steady import steady_speed_mps
 from itt_planner.model.rider import Rider, load_rider
 from itt_planner.ocp.plan import PLAN_ARRAYS, Plan
 from itt_planner.sim.simulate import simulate_ride
