@@ -37,7 +37,8 @@ from typing import TYPE_CHECKING
 from itt_planner.model.conditions import Conditions
 from itt_planner.course.geometry import Course
 from itt_planner.errors import SolveError
-from itt_planner.ocp.course_problem import OcpSettings, Start, solve_plan
+from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.plan import Plan
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
