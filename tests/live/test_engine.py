@@ -16,7 +16,8 @@ from itt_planner.live.advice import Level
 from itt_planner.live.course_replan import CourseReplanSettings
 from itt_planner.live.engine import ON_PLAN, EngineSettings, PacingEngine
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.ocp.horizon import SUBOPTIMAL_FEASIBLE, HorizonPlanner, HorizonSettings
+from itt_planner.ocp.horizon import HorizonPlanner
+from itt_planner.ocp.horizon_settings import SUBOPTIMAL_FEASIBLE, HorizonSettings
 
 #: A short horizon keeps the tests fast; a wall-time budget no loaded CI machine hits
 #: keeps the solver's path deterministic.
