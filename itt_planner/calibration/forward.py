@@ -24,7 +24,8 @@ from itt_planner.calibration.ride_data import CalibrationError
 from itt_planner.calibration.ride_on_course import RideOnCourse
 from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.course.geometry import Course, detect_corners
-from itt_planner.model.dynamics import ModelParams, build_1d, rk4_step
+from itt_planner.model.dynamics import build_1d, rk4_step
+from itt_planner.model.params import ModelParams
 from itt_planner.ocp.plan import PLAN_ARRAYS, Plan
 from itt_planner.model.rider import Rider
 
