@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 
 from itt_planner.model.conditions import Conditions  # noqa: E402
 from itt_planner.course.loader import load_course  # noqa: E402
-from itt_planner.ocp.course_problem import OcpSettings  # noqa: E402
+from itt_planner.ocp.course_settings import OcpSettings  # noqa: E402
 from itt_planner.ocp.cache import load_or_solve  # noqa: E402
 from itt_planner.session.replay import replay_ride  # noqa: E402
 from itt_planner.session.ride_session import SessionConfig  # noqa: E402
