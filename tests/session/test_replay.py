@@ -17,8 +17,9 @@ from itt_planner.logs.ridelog import RawRecord, RideLogReader, RideLogWriter, Ri
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import PRESETS
 from itt_planner.ocp.cache import load_or_solve
-from itt_planner.ocp.course_problem import OcpSettings
-from itt_planner.ocp.horizon import HorizonPlanner, HorizonSettings
+from itt_planner.ocp.course_settings import OcpSettings
+from itt_planner.ocp.horizon import HorizonPlanner
+from itt_planner.ocp.horizon_settings import HorizonSettings
 from itt_planner.session import replay as replay_mod
 from itt_planner.session import ride_session as session_mod
 from itt_planner.session.replay import ReplaySettings, parse_speed, replay
