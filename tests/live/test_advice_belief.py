@@ -32,7 +32,8 @@ from itt_planner.live.cp_monitor import CpMonitor, CpMonitorSettings
 from itt_planner.live.engine import EngineSettings, PacingEngine
 from itt_planner.live.estimate import StateEstimator
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.ocp.horizon import HorizonPlanner, HorizonSettings
+from itt_planner.ocp.horizon import HorizonPlanner
+from itt_planner.ocp.horizon_settings import HorizonSettings
 
 CALM = HorizonSettings(horizon_m=400.0, n_intervals=50, max_wall_time_s=30.0)
 #: Deterministic, no re-solves of the rest of the course (a worker process per test
