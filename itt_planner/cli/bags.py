@@ -26,7 +26,7 @@ def make_bag_cli(
     from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.course.loader import load_course  # noqa: PLC0415
     from itt_planner.sim.demo_bags import record_simulated_ride  # noqa: PLC0415
-    from itt_planner.ocp.course_problem import OcpSettings  # noqa: PLC0415
+    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
     from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
 
