@@ -19,7 +19,7 @@ import numpy as np
 
 from itt_planner.calibration.ride_data import air_density_kgpm3
 from itt_planner.model.conditions import Conditions
-from itt_planner.sim.simulate import simulate_ride
+from itt_planner.sim import simulate_ride
 
 from itt_planner.calibration import CalibrationError, CalibrationOptions, calibrate
 from itt_planner.calibration.validate import validate_ride

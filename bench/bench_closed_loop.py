@@ -39,7 +39,7 @@ from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.ocp.cache import load_or_solve
 from itt_planner.model.rider import PRESETS
-from itt_planner.sim.simulate import planning_conditions, simulate_ride
+from itt_planner.sim import planning_conditions, simulate_ride
 
 RIDER = PRESETS["paper"]
 

@@ -109,7 +109,7 @@ def forward_3d(course: Course, rider: Rider, ride: RideOnCourse,
         CalibrationError: the virtual rider stalled or fell (no finish): at walking pace
             its lean loop is unstable, and a measured stop (a junction on a climb) stops it.
     """
-    from itt_planner.sim.simulate import RiderBehaviour, simulate_ride  # noqa: PLC0415
+    from itt_planner.sim import RiderBehaviour, simulate_ride  # noqa: PLC0415
 
     behaviour = RiderBehaviour(power_noise=0.0)
     rolling = np.flatnonzero(ride.v_mps >= _START_MIN_MPS)

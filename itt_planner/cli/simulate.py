@@ -51,7 +51,7 @@ def simulate_cli(
     from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
     from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
-    from itt_planner.sim.simulate import compare_policies, planning_conditions  # noqa: PLC0415
+    from itt_planner.sim import compare_policies, planning_conditions  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         built = load_course(course)

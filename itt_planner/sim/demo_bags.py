@@ -1,11 +1,11 @@
 """Demo ride logs: a simulated ride of the virtual rider written as an MCAP ride log.
 
 The rider follows the full-course plan with the simulator's lag and noise (the
-`open_loop` policy of `simulate`: no pacing engine in the loop, so the log is a plain
-recording of a ride), on a truth that may differ from the plan's belief (a `simulate`
-scenario, e.g. a critical power 5 % below the plan's), and the simulated sensors give
-GPS at 1 Hz with 3 m of correlated noise, wheel speed and power with their own noise.
-Every log says in its metadata that it is SIMULATED and how to remake it.
+`open_loop` policy of `simulate_ride`: no pacing engine in the loop, so the log is a plain
+recording of a ride), on a truth that may differ from the plan's belief (a `Scenario`,
+e.g. a critical power 5 % below the plan's), and the simulated sensors give GPS at 1 Hz
+with 3 m of correlated noise, wheel speed and power with their own noise. Every log says
+in its metadata that it is SIMULATED and how to remake it.
 """
 
 from __future__ import annotations
@@ -15,13 +15,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from itt_planner.model.conditions import Conditions
 from itt_planner.course.geometry import Course
 from itt_planner.errors import IttError
-from itt_planner.ocp.plan import Plan
 from itt_planner.logs.ridelog import RideLogWriter, RideMetadata
+from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
-from itt_planner.sim.simulate import Policy, Scenario, simulate_ride
+from itt_planner.ocp.plan import Plan
+from itt_planner.sim.loop import simulate_ride
+from itt_planner.sim.scenarios import Policy, Scenario
 
 #: Stamp of the start of every demo ride (2026-05-09 12:00:00 UTC): a fixed, plausible
 #: race-day clock, so that remaking a bag with the same seed gives the same bytes.

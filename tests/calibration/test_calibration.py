@@ -28,7 +28,7 @@ from itt_planner.model.conditions import Conditions
 from itt_planner.model.steady import steady_speed_mps
 from itt_planner.model.rider import Rider, load_rider
 from itt_planner.ocp.plan import PLAN_ARRAYS, Plan
-from itt_planner.sim.simulate import simulate_ride
+from itt_planner.sim import simulate_ride
 
 TRUTH = Rider(name="truth", mass_kg=75.0, drag_area_m2=0.30, crr=0.005, critical_power_w=300.0,
               w_prime_j=20000.0)

@@ -12,7 +12,7 @@ from itt_planner.course.track_files import read_recording
 from itt_planner.live.estimate import StateEstimator
 from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
 from itt_planner.model.rider import PRESETS
-from itt_planner.sim.simulate import SensorSettings, hairpin_course, sensor_samples
+from itt_planner.sim import SensorSettings, hairpin_course, sensor_samples
 
 RIDER = PRESETS["paper"]
 

@@ -24,7 +24,7 @@ from itt_planner.session import replay as replay_mod
 from itt_planner.session import ride_session as session_mod
 from itt_planner.session.replay import ReplaySettings, parse_speed, replay
 from itt_planner.session.ride_session import RideSession, SessionConfig
-from itt_planner.sim.simulate import hairpin_course, sensor_samples
+from itt_planner.sim import hairpin_course, sensor_samples
 
 T0 = 1_779_000_000.0
 REPLAN_S = 10.0  # few solves keep the tests short; the benchmark replans at 1 Hz

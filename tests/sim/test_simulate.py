@@ -27,7 +27,7 @@ from itt_planner.ocp.cache import load_or_solve
 from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.ocp.horizon import HorizonPlanner
 from itt_planner.ocp.horizon_settings import HorizonSettings
-from itt_planner.sim.simulate import (
+from itt_planner.sim import (
     Policy,
     RiderBehaviour,
     Sensors,

@@ -2,7 +2,7 @@
 
 Registered for every test by the root conftest (`pytest_plugins`); the plan
 is solved once per test run and cached in pytest's cache directory. It is solved for
-`PLAN_CONDITIONS`, the lateral grip the virtual rider uses (`simulate.planning_conditions`),
+`PLAN_CONDITIONS`, the lateral grip the virtual rider uses (`sim.planning_conditions`),
 so that in `nominal` the planner's belief equals the simulated truth; planners built in
 the tests take the same conditions.
 """
@@ -15,7 +15,7 @@ from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import PRESETS
 from itt_planner.ocp.cache import load_or_solve
 from itt_planner.ocp.course_settings import OcpSettings
-from itt_planner.sim.simulate import hairpin_course, planning_conditions
+from itt_planner.sim import hairpin_course, planning_conditions
 
 RIDER = PRESETS["paper"]
 #: What the planner believes: dry road, still air, the rider's lateral grip.

@@ -39,7 +39,7 @@ def make_ride(folder: Path, *, input_hz: float = 4.0, gps_hz: float = 1.0,
     are solved once per process (~10 s).
     """
     from itt_planner.logs.ridelog import RideLogWriter, RideMetadata
-    from itt_planner.sim.simulate import SensorSettings, sensor_samples
+    from itt_planner.sim import SensorSettings, sensor_samples
 
     folder.mkdir(parents=True, exist_ok=True)
     course, plan, course_path, plan_path = _course_and_plan(folder.parent)
@@ -68,7 +68,7 @@ def _course_and_plan(folder: Path) -> tuple[Any, Any, Path, Path]:
     if folder not in _SOLVED:
         from itt_planner.model.rider import PRESETS
         from itt_planner.ocp.course_problem import solve_plan
-        from itt_planner.sim.simulate import hairpin_course
+        from itt_planner.sim import hairpin_course
 
         course = hairpin_course()
         plan = solve_plan(course, PRESETS[RIDER])
