@@ -29,16 +29,16 @@ from pathlib import Path
 
 import numpy as np
 
-from itt_planner.model.conditions import Conditions
 from itt_planner.course.loader import load_course
 from itt_planner.live.course_replan import start_from
 from itt_planner.live.engine import EngineSettings
-from itt_planner.ocp.horizon import HorizonPlanner
-from itt_planner.ocp.horizon_settings import HorizonSettings
+from itt_planner.model.conditions import Conditions
+from itt_planner.model.rider import PRESETS
+from itt_planner.ocp.cache import load_or_solve
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.course_settings import OcpSettings
-from itt_planner.ocp.cache import load_or_solve
-from itt_planner.model.rider import PRESETS
+from itt_planner.ocp.horizon import HorizonPlanner
+from itt_planner.ocp.horizon_settings import HorizonSettings
 from itt_planner.sim import planning_conditions, simulate_ride
 
 RIDER = PRESETS["paper"]

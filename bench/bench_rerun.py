@@ -1,7 +1,7 @@
 """Benchmark of a full demo-ride Rerun recording: file size and logging time.
 
 A ~21-minute ride on the verona-like demo course (16.8 km) with the synthetic plan and
-ride of tests/synthetic_ride.py (the OCP and the engine are not needed to measure the
+ride of tests/support/synthetic_ride.py (the OCP and the engine are not needed to measure the
 recorder): power and wheel speed at RATE Hz, GPS fix, rider state, advice (1000 m horizon)
 and diagnostics at 1 Hz. Prints medians of >= 3 runs of:
 
@@ -27,12 +27,12 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))  # the synthetic ride is shared with the tests
 
 import rerun as rr  # noqa: E402
-from synthetic_ride import RIDER, make_plan, make_ride  # noqa: E402
-from test_rerun import record  # noqa: E402
 
 from itt_planner.course.loader import load_course  # noqa: E402
 from itt_planner.view.rerun_log import RideRecorder  # noqa: E402
 from itt_planner.view.rerun_sink import RerunSink, open_recording  # noqa: E402
+from support.rerun_feed import record  # noqa: E402
+from support.synthetic_ride import RIDER, make_plan, make_ride  # noqa: E402
 
 LIMIT_BYTES = 50 * 1024 * 1024
 

@@ -28,9 +28,9 @@ from matplotlib.figure import Figure, SubFigure
 
 from itt_planner.course.geometry import Corner, Course
 from itt_planner.errors import IttError
-from itt_planner.ocp.plan import Plan
-from itt_planner.view.ride_report import RideTrace, actual_finish_s
 from itt_planner.model.rider import Rider
+from itt_planner.ocp.plan import Plan
+from itt_planner.view.ride_report import BeliefEvent, RideTrace, actual_finish_s, belief_events
 
 MPS_TO_KMH = 3.6
 #: Road shown before the entry and after the exit of a corner close-up (m).
@@ -97,6 +97,7 @@ def ride_summary(trace: RideTrace, plan: Plan, course: Course,
     """The figures of a ride report's table (edge units: km, km/h, min:s)."""
     finish = actual_finish_s(trace, course)
     statuses = Counter(trace.solver_status)
+    events = belief_events(trace)
     out: dict[str, object] = {
         "log": str(trace.path),
         "input": trace.metadata.get("input", ""),
@@ -121,7 +122,14 @@ def ride_summary(trace: RideTrace, plan: Plan, course: Course,
         "advice": len(trace.solver_status),
         "fallbacks": int(trace.fallback.sum()),
         "solver_status": dict(statuses.most_common()),
+        # What the engine planned with, from the advice (the plan drawn is the first).
+        "cp_refits": sum(e.kind == "refit" for e in events),
+        "plan_adoptions": sum(e.kind == "plan" for e in events),
+        "belief_changes": [belief_text(e) for e in events],
     }
+    cp_end = float(trace.cp_in_use_w[-1])
+    if math.isfinite(cp_end):
+        out["cp_in_use_end_w"] = round(cp_end, 1)
     if finish is not None:
         out["average_speed_kmh"] = round(course.length_m / finish * MPS_TO_KMH, 2)
     if rider is not None:
@@ -158,6 +166,9 @@ def draw_ride_overview(fig: Figure | SubFigure, ride: RideTrace, plan: Plan, cou
     ax_p.plot(ride.power_s_m / 1000, ride.power_w, color=ACTUAL, lw=0.6, alpha=0.9,
               label="actual power")
     _critical_power(ax_p, rider)
+    if np.isfinite(ride.cp_in_use_w).any():
+        ax_p.step(ride.advice_s_m / 1000, ride.cp_in_use_w, where="post", color="tab:red",
+                  lw=1.0, label="critical power in use (advice)")
     ax_p.set_ylabel("power (W)")
     ax_p.legend(loc="upper right", fontsize="small", ncols=2)
     ax_v.plot(ride.speed_s_m / 1000, ride.speed_mps * MPS_TO_KMH, color=ACTUAL, lw=0.8,
@@ -172,9 +183,31 @@ def draw_ride_overview(fig: Figure | SubFigure, ride: RideTrace, plan: Plan, cou
     ax_w.legend(loc="lower left", fontsize="small")
     _elevation(ax_z, course)
     _shade_corners((ax_p, ax_v, ax_w, ax_z), course)
+    events = belief_events(ride)
+    _mark_belief_events((ax_p, ax_v, ax_w), events)
     fallbacks = int(ride.fallback.sum())
+    refits = sum(e.kind == "refit" for e in events)
     fig.suptitle(f"{course.name}: ride (orange) against the plan ({plan.model}, blue); "
-                 f"{len(ride.fallback)} advice, {fallbacks} fallbacks; corners shaded")
+                 f"{len(ride.fallback)} advice, {fallbacks} fallbacks; {refits} CP refits "
+                 f"(red dots), {len(events) - refits} plans adopted (blue dots); "
+                 "corners shaded")
+
+
+def belief_text(event: BeliefEvent) -> str:
+    """One line of the report for a CP refit or a plan adoption (edge units: km, W)."""
+    where = f"at {event.s_m / 1000:.2f} km"
+    if event.kind == "refit":
+        return f"CP in use {event.cp_before_w:.0f} -> {event.cp_after_w:.0f} W {where}"
+    return f"plan {event.plan_version} adopted {where} (CP {event.cp_after_w:.0f} W)"
+
+
+def _mark_belief_events(axes: tuple[Axes, ...], events: list[BeliefEvent]) -> None:
+    """Dotted verticals where CP was refitted (red) or a re-solved plan adopted (blue);
+    the planned curves drawn are the first plan's, the target power follows the adopted."""
+    for event in events:
+        colour = "tab:red" if event.kind == "refit" else "tab:blue"
+        for ax in axes:
+            ax.axvline(event.s_m / 1000, color=colour, ls=":", lw=1.2)
 
 
 def _critical_power(ax: Axes, rider: Rider | None) -> None:
@@ -293,9 +326,12 @@ def _draw_top(fig: Figure | SubFigure, plan: Plan, course: Course, rider: Rider 
 
 
 def table_cell(value: object) -> str:
-    """A table cell: counts by name as `name: n, ...`, None as a dash."""
+    """A table cell: counts by name as `name: n, ...`, a list as `a; b` (empty: none),
+    None as a dash."""
     if isinstance(value, dict):
         return ", ".join(f"{k}: {v}" for k, v in value.items())
+    if isinstance(value, list):
+        return "; ".join(str(v) for v in value) or "none"
     return "-" if value is None else str(value)
 
 

@@ -1,6 +1,6 @@
 """The default Rerun layout of a ride: every view a coach needs, arranged without clicking.
 
-The entity tree it refers to is documented in `itt_planner.view.rerun_log`. Left column: the
+The entity tree it refers to is `itt_planner.view.rerun_paths`. Left column: the
 map (course, GPS track, planned line), the 3D road around the rider and the text log of
 advice changes and diagnostics. Right column: power, speed, W', lean / friction use /
 solve time, and the elevation profile. The time panel opens on the distance timeline,
@@ -13,9 +13,8 @@ import math
 
 import rerun.blueprint as rrb
 
-#: Timelines of a ride recording (see `itt_planner.view.rerun_log`).
-RIDE_TIMELINE = "ride_time"
-DISTANCE_TIMELINE = "distance_m"
+from itt_planner.view import rerun_paths as paths
+from itt_planner.view.rerun_paths import DISTANCE_TIMELINE, view_origin
 
 DEFAULT_MAP_ZOOM = 13.0
 #: Web-Mercator metres per pixel at zoom 0 on the equator.
@@ -34,20 +33,20 @@ def fit_map_zoom(lat_deg: float, extent_m: float, panel_px: float = _MAP_PANEL_P
 def _map_view(zoom: float) -> rrb.View:
     """The map stays latest-at: the GPS trail is logged as growing segments, so it needs no
     history window (which would also pile up every past horizon line)."""
-    return rrb.MapView(origin="/map", name="Map", zoom=zoom)
+    return rrb.MapView(origin=view_origin(paths.MAP), name="Map", zoom=zoom)
 
 
 def _road_view() -> rrb.View:
     # The default eye frames the whole course; the viewer's "track entity" on world/rider
     # follows the rider for a close look at the line.
-    return rrb.Spatial3DView(origin="/world", name="Road (ENU, 3D)")
+    return rrb.Spatial3DView(origin=view_origin(paths.WORLD), name="Road (ENU, 3D)")
 
 
-def _plot(origin: str, name: str) -> rrb.TimeSeriesView:
+def _plot(root: str, name: str) -> rrb.TimeSeriesView:
     # The whole ride on the x axis, also while streaming (the viewer would follow the end).
     everything = rrb.TimeRange(start=rrb.TimeRangeBoundary.infinite(),
                                end=rrb.TimeRangeBoundary.infinite())
-    return rrb.TimeSeriesView(origin=origin, name=name,
+    return rrb.TimeSeriesView(origin=view_origin(root), name=name,
                               axis_x=rrb.TimeAxis(view_range=everything))
 
 
@@ -62,19 +61,19 @@ def default_blueprint(*, timeline: str = DISTANCE_TIMELINE,
     left = rrb.Vertical(
         _map_view(map_zoom),
         _road_view(),
-        rrb.TextLogView(origin="/log", name="Advice and diagnostics"),
+        rrb.TextLogView(origin=view_origin(paths.LOG), name="Advice and diagnostics"),
         row_shares=[3.0, 3.0, 2.0],
     )
     right = rrb.Vertical(
-        _plot("/plots/power", "Power (W)"),
-        _plot("/plots/speed_kmh", "Speed (km/h)"),
-        _plot("/plots/w_prime_kj", "W' balance (kJ)"),
+        _plot(paths.POWER, "Power (W)"),
+        _plot(paths.SPEED, "Speed (km/h)"),
+        _plot(paths.W_PRIME, "W' balance (kJ)"),
         rrb.Horizontal(
-            _plot("/plots/lean_deg", "Lean (deg)"),
-            _plot("/plots/friction_use", "Friction-ellipse use"),
-            _plot("/plots/solve_time_ms", "Replan solve time (ms)"),
+            _plot(paths.LEAN, "Lean (deg)"),
+            _plot(paths.FRICTION_USE, "Friction-ellipse use"),
+            _plot(paths.SOLVE_TIME, "Replan solve time (ms)"),
         ),
-        _plot("/elevation", "Elevation (m)"),
+        _plot(paths.ELEVATION, "Elevation (m)"),
         row_shares=[3.0, 3.0, 2.0, 2.0, 2.0],
     )
     return rrb.Blueprint(

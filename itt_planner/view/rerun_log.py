@@ -4,41 +4,8 @@
 `rr.RecordingStream` (see `itt_planner.view.rerun_sink.open_recording`). The same calls serve
 the live node, a replay and a simulated ride; the layout is `rerun_blueprint`.
 
-Timelines:
-    ride_time   the message stamps: a timestamp timeline for POSIX stamps (recorded
-                rides), a duration timeline for stamps counted from 0 (simulations).
-    distance_m  arc length along the course (sequence, whole metres), from the latest
-                rider state; the full-course plan curves live only on this timeline.
-
-Entities (display units, at the edge: km/h, degrees, kJ, ms, named in the path):
-    map/course                  GeoLineStrings, static: course centre line (EPSG:4326)
-    map/plan_line               GeoLineStrings, static: the full-course planned line
-    map/gps                     GeoPoints: latest raw GPS fix
-    map/track/seg_NNNN          GeoLineStrings: the GPS track, in segments of 60 fixes
-    map/rider                   GeoPoints: estimated position (s, n) of the rider
-    map/target_line             GeoLineStrings: planned line over the horizon (per advice)
-    world                       ViewCoordinates RIGHT_HAND_Z_UP (ENU, metres), static
-    world/road                  Mesh3D, static: the road ribbon from w_L(s), w_R(s)
-    world/road/edges            LineStrips3D, static: left and right road edges
-    world/road/centre           LineStrips3D, static: centre line
-    world/plan_line             LineStrips3D, static: the full-course planned line
-    world/target_line           LineStrips3D: planned line over the horizon (per advice)
-    world/rider                 Points3D: estimated position of the rider
-    world/path/seg_NNNN         LineStrips3D: the rider's estimated path (a point per 5 m)
-    plots/power/{actual,target,critical,plan}          W ("critical": the CP in use, from
-                                                       each advice: refits show as steps)
-    plots/speed_kmh/{actual,plan}                      km/h
-    plots/w_prime_kj/{actual,finish,plan}              kJ ("finish": projected at the line)
-    plots/lean_deg/plan                                deg
-    plots/friction_use/plan                            C16 left-hand side (<= 1)
-    plots/solve_time_ms/replan                         ms per receding-horizon solve
-    elevation/profile           Scalars on distance_m: z(s) of the course
-    elevation/rider             Scalars (points): z at the rider's position
-    log/advice                  TextLog: advice changes (target, cue, status, fallback)
-    log/belief                  TextLog: CP refits and plan adoptions, as the advice
-                                reports them (`cp_in_use_w`, `plan_version`)
-    log/diagnostics             TextLog: diagnostic changes (solver, inputs, fallbacks)
-    log/inputs                  TextLog: inputs the recorder could not plot (NaN, inf)
+The timelines and the entity tree are `rerun_paths`; what is logged once (course, road,
+plan curves) is `rerun_scene`.
 
 `*/plan` series hold the full-course plan against distance (one `send_columns` call
 each) and, on ride_time, the plan sampled at the rider's position every 5 m. The plan
@@ -62,12 +29,10 @@ from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
 from itt_planner.ocp.plan import Plan
-from itt_planner.view.rerun_blueprint import (
-    DISTANCE_TIMELINE,
-    RIDE_TIMELINE,
-    default_blueprint,
-    fit_map_zoom,
-)
+from itt_planner.view import rerun_paths as paths
+from itt_planner.view import rerun_scene as scene
+from itt_planner.view.rerun_paths import DISTANCE_TIMELINE, RIDE_TIMELINE
+from itt_planner.view.rerun_scene import GREEN, MPS_TO_KMH, ORANGE, PLAN_SERIES, RED, thin
 
 #: Stamps from this value on are POSIX seconds (after 2001-09-09), below: a relative clock.
 POSIX_MIN_S = 1.0e9
@@ -76,54 +41,13 @@ POSIX_MIN_S = 1.0e9
 TRACK_SEGMENT = 60
 #: The 3D path and the ride-time plan samples take a point every PATH_STEP_M of s.
 PATH_STEP_M = 5.0
-#: Geometry logged once (course, ribbon, plan line) is thinned to this many points.
-MAX_STATIC_POINTS = 5000
 #: Horizon lines (logged with every advice) are thinned to this many points.
 MAX_HORIZON_POINTS = 100
 #: A target-power change this large (W) is an advice change worth a text-log line.
 ADVICE_CHANGE_W = 10.0
-MPS_TO_KMH = 3.6
-
-_GREY = (150, 150, 150)
-_ROAD = (90, 90, 95)
-_WHITE = (235, 235, 235)
-_ORANGE = (255, 140, 0)
-_RED = (220, 40, 40)
-_BLUE = (40, 120, 255)
-_GREEN = (0, 190, 90)
-_PURPLE = (160, 80, 220)
 
 _TEXT_LEVEL = {Level.OK: rr.TextLogLevel.INFO, Level.WARN: rr.TextLogLevel.WARN,
                Level.ERROR: rr.TextLogLevel.ERROR, Level.STALE: rr.TextLogLevel.WARN}
-
-# (entity, legend name, colour, plan array, scale from SI to display unit)
-_PLAN_SERIES = (
-    ("plots/power/plan", "planned", _BLUE, "power_w", 1.0),
-    ("plots/speed_kmh/plan", "planned", _BLUE, "v_mps", MPS_TO_KMH),
-    ("plots/w_prime_kj/plan", "planned", _BLUE, "w_prime_j", 1e-3),
-    ("plots/lean_deg/plan", "planned", _BLUE, "phi_rad", math.degrees(1.0)),
-    ("plots/friction_use/plan", "planned", _BLUE, "friction_use", 1.0),
-)
-_LINE_STYLES = (
-    ("plots/power/actual", "actual", _ORANGE),
-    ("plots/power/target", "target", _GREEN),
-    ("plots/power/critical", "critical power", _RED),
-    ("plots/speed_kmh/actual", "actual", _ORANGE),
-    ("plots/w_prime_kj/actual", "actual", _ORANGE),
-    ("plots/w_prime_kj/finish", "projected at finish", _PURPLE),
-    ("plots/solve_time_ms/replan", "solve time", _PURPLE),
-    ("elevation/profile", "course", _GREY),
-)
-
-
-def _step(n: int, max_points: int) -> int:
-    return max(1, math.ceil(n / max_points))
-
-
-def _thin(a: np.ndarray, max_points: int) -> np.ndarray:
-    """Every k-th element so that at most ~max_points remain, always keeping the last."""
-    k = _step(len(a), max_points)
-    return a[::k] if (len(a) - 1) % k == 0 else np.concatenate([a[::k], a[-1:]])
 
 
 class _Trail:
@@ -167,7 +91,7 @@ class RideRecorder:
                  plan: Plan | None) -> None:
         self.rec = rec
         # A disabled recording (the `none` sink) costs nothing: no archetypes are built.
-        self.enabled = rec.is_enabled()
+        self.enabled = rr.is_enabled(rec)
         self.course = course
         self.rider = rider
         self.plan = plan
@@ -205,69 +129,13 @@ class RideRecorder:
             self.rec.set_time(DISTANCE_TIMELINE, sequence=round(s_m))
         return True
 
-    def _lat_lon(self, s_m: np.ndarray | float, n_m: np.ndarray | float = 0.0) -> np.ndarray:
-        x, y, z = self.course.enu_at(s_m, n_m)
-        lat, lon, _ = self.course.to_geodetic(x, y, z)
-        return np.column_stack([np.atleast_1d(lat), np.atleast_1d(lon)])
-
     # ---- static -------------------------------------------------------------------------
     def log_course(self) -> None:
         """Log what does not change during the ride: course, road, plan, series styles."""
         if not self.enabled:
             return
         with self._lock:
-            self._log_course()
-
-    def _log_course(self) -> None:
-        rec, course = self.rec, self.course
-        rec.send_recording_name(f"{course.name} / {self.rider.name}")
-        # The default layout again, with the map zoomed to fit this course.
-        extent = max(np.ptp(course.x_m), np.ptp(course.y_m))
-        rec.send_blueprint(default_blueprint(map_zoom=fit_map_zoom(course.origin.lat_deg,
-                                                                   float(extent))))
-        idx = _thin(np.arange(len(course.s_m)), MAX_STATIC_POINTS)
-        s = course.s_m[idx]
-        rec.log("map/course", rr.GeoLineStrings(
-            lat_lon=[self._lat_lon(s)], radii=rr.components.Radius.ui_points(3.0),
-            colors=_GREY), static=True)
-        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-        left = np.column_stack(course.enu_at(s, course.width_left_m[idx]))
-        right = np.column_stack(course.enu_at(s, -course.width_right_m[idx]))
-        centre = np.column_stack(course.enu_at(s))
-        vertices = np.empty((2 * len(s), 3))
-        vertices[0::2], vertices[1::2] = left, right
-        # Two triangles per road section between cross sections i and i+1.
-        i = np.arange(len(s) - 1)
-        tris = np.concatenate([
-            np.column_stack([2 * i, 2 * i + 1, 2 * i + 2]),
-            np.column_stack([2 * i + 1, 2 * i + 3, 2 * i + 2]),
-        ])
-        rec.log("world/road", rr.Mesh3D(vertex_positions=vertices, triangle_indices=tris,
-                                        albedo_factor=_ROAD), static=True)
-        rec.log("world/road/edges", rr.LineStrips3D([left, right], colors=_WHITE,
-                                                    radii=rr.components.Radius.ui_points(1.5)),
-                static=True)
-        rec.log("world/road/centre", rr.LineStrips3D([centre], colors=_GREY,
-                                                     radii=rr.components.Radius.ui_points(0.5)),
-                static=True)
-        # The profile against distance: one call for the whole array.
-        rec.send_columns(
-            "elevation/profile",
-            indexes=[rr.TimeColumn(DISTANCE_TIMELINE, sequence=np.round(s).astype(np.int64))],
-            columns=rr.Scalars.columns(scalars=course.z_m[idx]),
-        )
-        rec.log("elevation/rider", rr.SeriesPoints(names="rider", colors=_RED,
-                                                   marker_sizes=4.0), static=True)
-        for path, name, colour in _LINE_STYLES:
-            rec.log(path, rr.SeriesLines(names=name, colors=colour), static=True)
-        cp = self.rider.critical_power_w
-        rec.send_columns(
-            "plots/power/critical",
-            indexes=[rr.TimeColumn(DISTANCE_TIMELINE, sequence=[0, round(course.length_m)])],
-            columns=rr.Scalars.columns(scalars=[cp, cp]),
-        )
-        if self.plan is not None:
-            self._log_plan(self.plan)
+            scene.log_course(self.rec, self.course, self.rider, self.plan)
 
     def log_plan(self, plan: Plan, version: int) -> None:
         """A new plan in force (`PacingEngine.plan` after an adoption, `plan_version`):
@@ -280,24 +148,7 @@ class RideRecorder:
                 return
             self.plan = plan
             self._plan_version = version
-            self._log_plan(plan)
-
-    def _log_plan(self, plan: Plan) -> None:
-        rec = self.rec
-        index = rr.TimeColumn(DISTANCE_TIMELINE, sequence=np.round(plan.s_m).astype(np.int64))
-        for path, name, colour, field, scale in _PLAN_SERIES:
-            rec.log(path, rr.SeriesLines(names=name, colors=colour), static=True)
-            rec.send_columns(path, indexes=[index],
-                             columns=rr.Scalars.columns(scalars=getattr(plan, field) * scale))
-        k = _thin(np.arange(plan.n_nodes), MAX_STATIC_POINTS)
-        rec.log("map/plan_line", rr.GeoLineStrings(
-            lat_lon=[self._lat_lon(plan.s_m[k], plan.n_m[k])],
-            radii=rr.components.Radius.ui_points(2.0), colors=_BLUE), static=True)
-        x, y, z = self.course.enu_at(plan.s_m[k], plan.n_m[k])
-        # Lifted a few cm so it is drawn on top of the road surface.
-        rec.log("world/plan_line", rr.LineStrips3D(
-            [np.column_stack([x, y, z + 0.05])], colors=_BLUE,
-            radii=rr.components.Radius.ui_points(1.5)), static=True)
+            scene.log_plan(self.rec, self.course, plan)
 
     # ---- inputs -------------------------------------------------------------------------
     def _bad_input(self, stamp_s: float, what: str, value: float) -> bool:
@@ -307,7 +158,7 @@ class RideRecorder:
         if math.isfinite(value):
             return False
         self.skipped_inputs += 1
-        self.rec.log("log/inputs", rr.TextLog(f"{what}: non-finite value {value!r} skipped",
+        self.rec.log(paths.LOG_INPUTS, rr.TextLog(f"{what}: non-finite value {value!r} skipped",
                                               level=rr.TextLogLevel.WARN))
         return True
 
@@ -329,7 +180,7 @@ class RideRecorder:
                 if type(sample) not in self._unviewed and self._set_time(sample.stamp_s,
                                                                          self._s_m):
                     self._unviewed.add(type(sample))
-                    self.rec.log("log/inputs", rr.TextLog(
+                    self.rec.log(paths.LOG_INPUTS, rr.TextLog(
                         f"{type(sample).__name__}: no view for this sample type, not drawn",
                         level=rr.TextLogLevel.WARN))
 
@@ -355,23 +206,23 @@ class RideRecorder:
                 or self._bad_input(fix.stamp_s, "gps longitude", fix.lon_deg)):
             return
         point = (fix.lat_deg, fix.lon_deg)
-        self.rec.log("map/gps", rr.GeoPoints(lat_lon=[point], colors=_ORANGE,
+        self.rec.log(paths.MAP_GPS, rr.GeoPoints(lat_lon=[point], colors=ORANGE,
                                              radii=rr.components.Radius.ui_points(4.0)))
         segment = self._track.add(point)
-        self.rec.log(f"map/track/seg_{self._track.index:04d}", rr.GeoLineStrings(
-            lat_lon=[segment], colors=_ORANGE, radii=rr.components.Radius.ui_points(2.0)))
+        self.rec.log(paths.map_track_segment(self._track.index), rr.GeoLineStrings(
+            lat_lon=[segment], colors=ORANGE, radii=rr.components.Radius.ui_points(2.0)))
 
     def _view_speed(self, sample: WheelSpeed, _state: RiderState | None) -> None:
         """Wheel speed (actual), in km/h."""
         if self._bad_input(sample.stamp_s, "wheel speed", sample.speed_mps):
             return
-        self.rec.log("plots/speed_kmh/actual", rr.Scalars(sample.speed_mps * MPS_TO_KMH))
+        self.rec.log(paths.SPEED_ACTUAL, rr.Scalars(sample.speed_mps * MPS_TO_KMH))
 
     def _view_power(self, sample: PowerReading, _state: RiderState | None) -> None:
         """Pedal power (actual), in W."""
         if self._bad_input(sample.stamp_s, "power", sample.power_w):
             return
-        self.rec.log("plots/power/actual", rr.Scalars(sample.power_w))
+        self.rec.log(paths.POWER_ACTUAL, rr.Scalars(sample.power_w))
 
     # ---- estimate and advice -----------------------------------------------------------
     def log_state(self, state: RiderState) -> None:
@@ -387,23 +238,23 @@ class RideRecorder:
             self._s_m = state.s_m
             n = state.n_m if math.isfinite(state.n_m) else 0.0
             x, y, z = (float(v) for v in self.course.enu_at(state.s_m, n))
-            self.rec.log("map/rider", rr.GeoPoints(
-                lat_lon=self._lat_lon(state.s_m, n), colors=_RED,
+            self.rec.log(paths.MAP_RIDER, rr.GeoPoints(
+                lat_lon=scene.lat_lon(self.course, state.s_m, n), colors=RED,
                 radii=rr.components.Radius.ui_points(7.0)))
-            self.rec.log("world/rider", rr.Points3D([[x, y, z + 1.0]], colors=_RED, radii=0.8))
-            self.rec.log("elevation/rider", rr.Scalars(z))
+            self.rec.log(paths.WORLD_RIDER, rr.Points3D([[x, y, z + 1.0]], colors=RED, radii=0.8))
+            self.rec.log(paths.ELEVATION_RIDER, rr.Scalars(z))
             if math.isfinite(state.w_prime_j):
-                self.rec.log("plots/w_prime_kj/actual", rr.Scalars(state.w_prime_j * 1e-3))
+                self.rec.log(paths.W_PRIME_ACTUAL, rr.Scalars(state.w_prime_j * 1e-3))
             if self._last_path_s is not None and abs(state.s_m - self._last_path_s) < PATH_STEP_M:
                 return
             self._last_path_s = state.s_m
             segment = self._path.add((x, y, z + 0.1))
-            self.rec.log(f"world/path/seg_{self._path.index:04d}", rr.LineStrips3D(
-                [segment], colors=_ORANGE, radii=rr.components.Radius.ui_points(2.5)))
+            self.rec.log(paths.world_path_segment(self._path.index), rr.LineStrips3D(
+                [segment], colors=ORANGE, radii=rr.components.Radius.ui_points(2.5)))
             if self.plan is not None:
                 # The plan at the rider, on ride_time only: on distance_m it is the full curve.
                 self._set_time(state.stamp_s, None)
-                for path, _name, _colour, field, scale in _PLAN_SERIES:
+                for path, _name, _colour, field, scale in PLAN_SERIES:
                     self.rec.log(path, rr.Scalars(float(self.plan.at(field, state.s_m)) * scale))
 
     def log_advice(self, advice: Advice) -> None:
@@ -417,9 +268,9 @@ class RideRecorder:
                 return
             rec = self.rec
             for path, value, scale in (
-                ("plots/power/target", advice.target_power_w, 1.0),
-                ("plots/w_prime_kj/finish", advice.w_prime_finish_j, 1e-3),
-                ("plots/solve_time_ms/replan", advice.solve_time_s, 1e3),
+                (paths.POWER_TARGET, advice.target_power_w, 1.0),
+                (paths.W_PRIME_FINISH, advice.w_prime_finish_j, 1e-3),
+                (paths.SOLVE_TIME_REPLAN, advice.solve_time_s, 1e3),
             ):
                 if math.isfinite(value):
                     rec.log(path, rr.Scalars(value * scale))
@@ -427,41 +278,42 @@ class RideRecorder:
             xyz = np.column_stack([advice.line_x_m, advice.line_y_m, advice.line_z_m + 0.1])
             ok = np.isfinite(lat_lon).all(axis=1) & np.isfinite(xyz).all(axis=1)
             if ok.sum() >= 2:
-                k = _thin(np.flatnonzero(ok), MAX_HORIZON_POINTS)
-                colour = _RED if advice.fallback else _GREEN
-                rec.log("map/target_line", rr.GeoLineStrings(
+                k = thin(np.flatnonzero(ok), MAX_HORIZON_POINTS)
+                colour = RED if advice.fallback else GREEN
+                rec.log(paths.MAP_TARGET_LINE, rr.GeoLineStrings(
                     lat_lon=[lat_lon[k]], colors=colour,
                     radii=rr.components.Radius.ui_points(3.0)))
-                rec.log("world/target_line", rr.LineStrips3D(
+                rec.log(paths.WORLD_TARGET_LINE, rr.LineStrips3D(
                     [xyz[k]], colors=colour, radii=rr.components.Radius.ui_points(3.0)))
             change = self._advice_change(advice)
             if change is not None:
                 level = rr.TextLogLevel.WARN if advice.fallback else rr.TextLogLevel.INFO
-                rec.log("log/advice", rr.TextLog(change, level=level))
-            belief = self._belief_change(advice)
-            if belief is not None:
-                rec.log("log/belief", rr.TextLog(belief[0], level=belief[1]))
+                rec.log(paths.LOG_ADVICE, rr.TextLog(change, level=level))
+            for text, level in self._belief_changes(advice):
+                rec.log(paths.LOG_BELIEF, rr.TextLog(text, level=level))
             self._set_time(advice.stamp_s, None)
             cp = (advice.cp_in_use_w if math.isfinite(advice.cp_in_use_w)
                   else self.rider.critical_power_w)
-            rec.log("plots/power/critical", rr.Scalars(cp))
+            rec.log(paths.POWER_CRITICAL, rr.Scalars(cp))
 
-    def _belief_change(self, advice: Advice) -> tuple[str, str] | None:
-        """A text-log line (and its level) when the advice's CP in use or plan version
-        differs from the last advice's: a refit (WARN) or a plan adoption (INFO)."""
+    def _belief_changes(self, advice: Advice) -> list[tuple[str, rr.TextLogLevel]]:
+        """Text-log lines (and levels) for what changed in the advice's CP in use and plan
+        version since the last advice: a refit (WARN), a plan adoption (INFO), or both
+        when one advice carries both."""
         cp = advice.cp_in_use_w
         now = (cp, int(advice.plan_version))
         last, self._belief = self._belief, now
         if last is None or not math.isfinite(cp):
-            return None
+            return []
         where = f"at {advice.state.s_m / 1000:.2f} km"
+        lines = []
         if math.isfinite(last[0]) and cp != last[0]:
-            return (f"CP in use {last[0]:.0f} -> {cp:.0f} W {where} (refit; see "
-                    "itt_planner/rider_model)", rr.TextLogLevel.WARN)
+            lines.append((f"CP in use {last[0]:.0f} -> {cp:.0f} W {where} (refit; see "
+                          "itt_planner/rider_model)", rr.TextLogLevel.WARN))
         if now[1] != last[1]:
-            return (f"plan {now[1]} adopted {where} (the rest of the course re-solved for "
-                    f"CP {cp:.0f} W)", rr.TextLogLevel.INFO)
-        return None
+            lines.append((f"plan {now[1]} adopted {where} (the rest of the course re-solved "
+                          f"for CP {cp:.0f} W)", rr.TextLogLevel.INFO))
+        return lines
 
     def _advice_change(self, advice: Advice) -> str | None:
         """A text-log line when the advice changed enough to tell the team car, else None."""
@@ -504,7 +356,7 @@ class RideRecorder:
                 self._diag_seen[diag.name] = key
                 stale = " (stale)" if diag.level == Level.STALE else ""
                 values = "".join(f" {k}={v}" for k, v in sorted(diag.values.items()))
-                self.rec.log("log/diagnostics", rr.TextLog(
+                self.rec.log(paths.LOG_DIAGNOSTICS, rr.TextLog(
                     f"{diag.name}{stale}: {diag.message}{values}",
                     level=_TEXT_LEVEL.get(diag.level, rr.TextLogLevel.WARN)))
 

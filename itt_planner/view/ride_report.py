@@ -19,13 +19,13 @@ from pathlib import Path
 import numpy as np
 
 from itt_msgs_py import topics
-from itt_planner.live.advice import Advice
 from itt_planner.course.geometry import Course
 from itt_planner.errors import IttError
-from itt_planner.ocp.plan import Plan
+from itt_planner.live.advice import Advice
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.logs.ridelog import SESSION_METADATA, RideLogReader
 from itt_planner.model.rider import Rider
-from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.ocp.plan import Plan
 
 #: The first bytes of every MCAP file.
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -224,11 +224,11 @@ def ride_setup(trace: RideTrace, course_spec: str | None, rider_spec: str | None
         CourseError, RiderError, SolveError: the course, rider or plan is unusable.
     """
     # Heavy (CasADi): imported when a ride report is actually made.
-    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.course.loader import load_course  # noqa: PLC0415
-    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
-    from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
+    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
+    from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
+    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
 
     course_spec = course_spec or trace.metadata.get("course")
     rider_spec = rider_spec or trace.metadata.get("rider")

@@ -14,7 +14,6 @@ import math
 import numpy as np
 import pytest
 import yaml
-from support.hairpin_fixtures import PLAN_CONDITIONS, RIDER
 from typer.testing import CliRunner
 
 from itt_planner.cli import app
@@ -36,6 +35,7 @@ from itt_planner.sim import (
     planning_conditions,
     simulate_ride,
 )
+from support.hairpin_fixtures import PLAN_CONDITIONS, RIDER
 
 FAST_HORIZON = HorizonSettings(horizon_m=400.0, n_intervals=50, max_wall_time_s=30.0)
 #: Replan every 2 s; no overrun judged on a loaded 2-core machine; the rest of the

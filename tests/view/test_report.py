@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
-from support.synthetic_ride import RIDER, make_course, make_plan
 from typer.testing import CliRunner
 
 from itt_planner.cli import app
@@ -26,10 +25,17 @@ from itt_planner.logs.ridelog import read_ride_log
 from itt_planner.ocp.plan import Plan
 from itt_planner.session.replay import replay_ride
 from itt_planner.session.ride_session import SessionConfig
-from itt_planner.view.report import render_html, rider_from_plan, summary, write_report
-from itt_planner.view.ride_report import belief_events, load_ride_trace
+from itt_planner.view.report import (
+    render_html,
+    ride_summary,
+    rider_from_plan,
+    summary,
+    write_report,
+)
+from itt_planner.view.ride_report import RideTrace, belief_events, load_ride_trace
+from support.synthetic_ride import RIDER, make_course, make_plan
 
-DEMO_BAG = Path(__file__).parents[1] / "bags" / "typical_verona-like.mcap"
+DEMO_BAG = Path(__file__).parents[2] / "bags" / "typical_verona-like.mcap"
 
 
 @pytest.fixture(scope="module")
@@ -124,6 +130,51 @@ def test_demo_course_named_in_plan_header(tmp_path: Path) -> None:
     result = CliRunner().invoke(app, ["report", str(plan_path), "-o", str(out)])
     assert result.exit_code == 0, result.output
     assert "verona-like" in result.stdout and Image.open(out).format == "PNG"
+
+
+def belief_trace(course: Course, plan: Plan) -> RideTrace:
+    """A ride of 20 advice over the synthetic course: CP refitted 440 -> 418 W at the
+    8th advice, the re-solved plan 1 adopted at the 11th."""
+    n = 20
+    t = np.arange(n, dtype=float) * 2.0
+    s = np.linspace(0.0, course.length_m, n)
+    cp = np.where(np.arange(n) >= 7, 418.0, 440.0)
+    version = np.where(np.arange(n) >= 10, 1, 0)
+    power = np.interp(s, plan.s_m, plan.power_w)
+    speed = np.interp(s, plan.s_m, plan.v_mps)
+    lat, lon, _ = course.to_geodetic(*course.enu_at(s))
+    return RideTrace(
+        path=Path("synthetic.mcap"), start_stamp_s=0.0, end_stamp_s=float(t[-1]),
+        power_t_s=t, power_w=power, power_s_m=s, speed_t_s=t, speed_mps=speed, speed_s_m=s,
+        gps_lat_deg=np.asarray(lat), gps_lon_deg=np.asarray(lon), gps_s_m=s,
+        advice_t_s=t, advice_s_m=s, advice_speed_mps=speed, target_power_w=power,
+        w_prime_now_j=np.full(n, 20_000.0), w_prime_finish_j=np.full(n, 1_000.0),
+        fallback=np.zeros(n, dtype=bool), solver_status=("converged",) * n, metadata={},
+        cp_in_use_w=cp, plan_version=version, cue=np.zeros(n, dtype=int))
+
+
+def test_ride_report_shows_refits_and_plan_adoptions(plan: Plan, course: Course) -> None:
+    """The report of a ride names what the engine planned with (from the advice), not
+    only the believed rider and the first plan: the table counts and lists the CP refit
+    and the plan adoption, the figure steps the CP in use and marks both."""
+    trace = belief_trace(course, plan)
+    table = ride_summary(trace, plan, course, RIDER)
+    assert (table["cp_refits"], table["plan_adoptions"]) == (1, 1)
+    assert table["cp_in_use_end_w"] == 418.0
+    km_refit, km_plan = trace.advice_s_m[7] / 1000, trace.advice_s_m[10] / 1000
+    assert table["belief_changes"] == [
+        f"CP in use 440 -> 418 W at {km_refit:.2f} km",
+        f"plan 1 adopted at {km_plan:.2f} km (CP 418 W)",
+    ]
+    page = render_html(plan, course, RIDER, ride=trace)
+    assert f"CP in use 440 -&gt; 418 W at {km_refit:.2f} km; plan 1 adopted" in page
+    assert "cp refits</th><td>1<" in page and "plan adoptions</th><td>1<" in page
+    # A ride without either says so.
+    steady = RideTrace(**{**trace.__dict__, "cp_in_use_w": np.full(20, 440.0),
+                          "plan_version": np.zeros(20, dtype=int)})
+    table = ride_summary(steady, plan, course, RIDER)
+    assert (table["cp_refits"], table["plan_adoptions"], table["belief_changes"]) == (0, 0, [])
+    assert "belief changes</th><td>none<" in render_html(plan, course, RIDER, ride=steady)
 
 
 @pytest.fixture(scope="module")

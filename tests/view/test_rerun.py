@@ -10,15 +10,24 @@ import numpy as np
 import pytest
 import rerun as rr
 from rerun.chunk import ChunkStore, RrdReader
-from support.rerun_feed import record
-from support.synthetic_ride import REFIT_CP_W, RIDER, T0_S, make_course, make_plan, make_ride
 
 from itt_planner.errors import IttError
 from itt_planner.live.advice import Advice, Diagnostic
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.model.state import RiderState
-from itt_planner.view.rerun_log import MAX_HORIZON_POINTS, MPS_TO_KMH, TRACK_SEGMENT, RideRecorder
+from itt_planner.view.rerun_log import MAX_HORIZON_POINTS, TRACK_SEGMENT, RideRecorder
+from itt_planner.view.rerun_scene import MPS_TO_KMH
 from itt_planner.view.rerun_sink import RerunSink, open_recording
+from support.rerun_feed import record
+from support.synthetic_ride import (
+    REFIT_CP_W,
+    RIDER,
+    T0_S,
+    make_advice,
+    make_course,
+    make_plan,
+    make_ride,
+)
 
 
 @pytest.fixture(scope="module")
@@ -196,6 +205,27 @@ def test_text_log_has_advice_changes_and_diagnostic_changes(ride: dict) -> None:
     assert len(belief) == 2
     assert f"{RIDER.critical_power_w:.0f} -> {REFIT_CP_W:.0f} W" in belief[0]
     assert "plan 1 adopted" in belief[1]
+
+
+def test_refit_and_adoption_in_one_advice_are_both_logged(tmp_path: Path) -> None:
+    """An advice whose CP in use and plan version both changed gives two belief lines."""
+    course = make_course()
+    plan = make_plan(course)
+    path = tmp_path / "belief.rrd"
+    rec = open_recording(RerunSink.parse(f"file:{path}"))
+    recorder = RideRecorder(rec, course, RIDER, plan)
+    for k, (cp, version) in enumerate([(RIDER.critical_power_w, 0), (REFIT_CP_W, 1)]):
+        state = RiderState(T0_S + k, 100.0 + 10 * k, 0.0, 11.0, 0.0, 350.0, 20000.0, float(k))
+        recorder.log_advice(make_advice(course, plan, state, cp_in_use_w=cp,
+                                        plan_version=version))
+    rec.flush()
+    rec.disconnect()
+    store = RrdReader(path).store().stream().collect()
+    belief = texts(store, "/log/belief")
+    assert len(belief) == 2
+    assert f"{RIDER.critical_power_w:.0f} -> {REFIT_CP_W:.0f} W" in belief[0]
+    assert "plan 1 adopted" in belief[1]
+    assert texts(store, "/log/belief", "TextLog:level") == ["WARN", "INFO"]
 
 
 def test_track_and_path_in_segments(ride: dict) -> None:
