@@ -1,7 +1,8 @@
 """Run every benchmark in bench/ one after the other: `python -m bench [NAME ...]`.
 
 Each `bench_*.py` is a standalone script printing its own medians and ratios; they run
-in separate processes so one benchmark's memory peak does not colour the next.
+in separate processes (as `python -m bench.bench_x`, so the package puts `tests/` on the
+path) so one benchmark's memory peak does not colour the next.
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ def main(names: list[str]) -> int:
     failed = 0
     for script in scripts:
         print(f"=== {script.name}", flush=True)
-        failed += subprocess.call([sys.executable, str(script)], cwd=here.parent) != 0
+        failed += subprocess.call([sys.executable, "-m", f"bench.{script.stem}"],
+                                  cwd=here.parent) != 0
     return 1 if failed else 0
 
 

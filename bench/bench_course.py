@@ -1,15 +1,15 @@
 """Benchmark: GPS track -> Course for a 17 km (Bologna TCX) and a 100 km (Sauerland FIT) track.
 
-Run: `.venv/bin/python bench/bench_course.py`. Prints medians of 5 runs of
+Run: `.venv/bin/python -m bench.bench_course`. Prints medians of 5 runs of
 - the file read (parsers: tcxreader / fitdecode),
-- the full fit (`course_fit.fit_course`: cleaning, 3 adaptive spline passes, heading filter,
-  altitude, corners),
+- the full fit (`itt_planner.course.fit.fit_course`: cleaning, 3 adaptive spline passes,
+  heading filter, altitude, corners),
 - a baseline in the same run: ONE plain `scipy.interpolate.make_smoothing_spline` pass on the
   same cleaned points with GCV-chosen smoothing (no adaptivity, no heading filter),
 and the ratio fit / baseline. Needs ../shared/data beside the checkout.
 
 `--accuracy N` instead counts, over seeds 0..N-1 of the synthetic track of
-tests/test_course_fit.py, how often each of the issue's bars holds for `fit_course`.
+tests/support/synthetic_track.py, how often each of the issue's bars holds for `fit_course`.
 `--oracle N` counts the same bars for a fit that knows what the general fit cannot: the
 layout (lines and tangent circular arcs in the true order) and the sampler (first and last
 fix on the course ends, 5-15 m between fixes). It is the maximum-likelihood estimate under
@@ -23,7 +23,6 @@ from __future__ import annotations
 import argparse
 import math
 import statistics
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -32,14 +31,13 @@ import numpy as np
 import pymap3d
 from scipy.interpolate import make_smoothing_spline
 from scipy.optimize import least_squares
+from support.synthetic_track import LAYOUT, bar_passes, fit_errors, synthetic_recording
 
 from itt_planner.course.fit import fit_course
 from itt_planner.course.track_clean import clean_track
-from itt_planner.course.track_files import read_recording
+from itt_planner.course.track_files import Recording, read_recording
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))  # the synthetic track and its error measure
-from test_course_fit import LAYOUT, _errors, bar_passes, synthetic_recording  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "rides"
 TRACKS = {"17 km (zwift_bologna_tt_virtual.tcx)": DATA / "zwift_bologna_tt_virtual.tcx",
@@ -56,7 +54,7 @@ def median_s(fn: Callable[[], object]) -> float:
     return statistics.median(times)
 
 
-def baseline(rec) -> None:  # noqa: ANN001
+def baseline(rec: Recording) -> None:
     """One GCV smoothing spline through the cleaned fixes, curvature from its derivatives."""
     track = clean_track(rec)
     u = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(track.x_m), np.diff(track.y_m)))])
@@ -70,7 +68,7 @@ def accuracy(n_seeds: int) -> None:
     """Per-bar pass counts of `fit_course` on the synthetic track, seeds 0..n_seeds-1."""
     count = dict.fromkeys(["R12", "R40", "R25", "length", "straights", "all"], 0)
     for seed in range(n_seeds):
-        length_err, straight, errors, _ = _errors(seed)
+        length_err, straight, errors, _ = fit_errors(seed)
         for key, value in bar_passes(length_err, straight, errors).items():
             count[key] += value
     print(f"fit_course, seeds 0-{n_seeds - 1} (R40 counts both S-bend arcs): {count}")
@@ -143,10 +141,12 @@ def oracle(n_seeds: int) -> None:
         rec, _, true_length = synthetic_recording(seed)
         x, y, _ = pymap3d.geodetic2enu(rec.lat_deg, rec.lon_deg, np.zeros(len(rec)),
                                        45.0, 11.0, 100.0)
-        geo, lo, hi = [], [], []
+        geo: list[float] = []
+        lo: list[float] = []
+        hi: list[float] = []
         for i, (kind, value, radius) in enumerate(LAYOUT):
             if kind == "straight" and i < len(LAYOUT) - 1:
-                geo, lo, hi = geo + [value], lo + [0.0], hi + [np.inf]
+                geo, lo, hi = [*geo, value], [*lo, 0.0], [*hi, np.inf]
             elif kind == "arc":
                 turn = math.radians(value)
                 geo += [radius, turn]

@@ -23,13 +23,14 @@ The machine is shared: the load average is printed with each figure.
 from __future__ import annotations
 
 import argparse
-import multiprocessing
 import json
+import multiprocessing
 import os
 import statistics
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -54,7 +55,7 @@ def load() -> str:
     return "/".join(f"{x:.1f}" for x in os.getloadavg())
 
 
-def write_spec(folder: Path, name: str, axes: dict) -> Path:
+def write_spec(folder: Path, name: str, axes: dict[str, Any]) -> Path:
     (folder / "short.yaml").write_text(yaml.safe_dump(SHORT))
     path = folder / f"{name}.yaml"
     path.write_text(yaml.safe_dump({"name": name, "courses": ["short.yaml"],
@@ -62,7 +63,7 @@ def write_spec(folder: Path, name: str, axes: dict) -> Path:
     return path
 
 
-def _loop(spec_path: Path) -> dict:
+def _loop(spec_path: Path) -> dict[str, Any]:
     spec = load_spec(spec_path)
     courses, riders = load_inputs(spec)
     cases = expand(spec, courses, riders)
@@ -77,7 +78,7 @@ def _loop(spec_path: Path) -> dict:
             "mean_case_s": statistics.mean(walls[1:])}
 
 
-def plain_loop(spec_path: Path) -> dict:
+def plain_loop(spec_path: Path) -> dict[str, Any]:
     """`_loop` in a fresh process (its NLP cache cold, like a new Ray worker's), with one
     OpenMP thread as Ray gives a 1-CPU worker (it sets OMP_NUM_THREADS=1), so that both
     run the same code the same way (without it, one run of the loop was 25 % slower than
@@ -90,7 +91,7 @@ def plain_loop(spec_path: Path) -> dict:
         del os.environ["OMP_NUM_THREADS"]
 
 
-def ray_sweep(spec_path: Path, workers: int, folder: Path) -> dict:
+def ray_sweep(spec_path: Path, workers: int, folder: Path) -> dict[str, Any]:
     spec = load_spec(spec_path)
     out = Path(tempfile.mkdtemp(dir=folder)) / "r.parquet"
     stamps: list[float] = []
@@ -116,7 +117,7 @@ def noop_round_trip(n: int = 200) -> float:
     import ray  # noqa: PLC0415
 
     with ray_session(workers=1):
-        actor = ray.remote(num_cpus=1)(CaseSolver).remote()
+        actor: Any = ray.remote(num_cpus=1)(CaseSolver).remote()
         ray.get(actor.whoami.remote())
         times = []
         for _ in range(n):
@@ -126,7 +127,7 @@ def noop_round_trip(n: int = 200) -> float:
     return statistics.median(times)
 
 
-def memory(rows: list[dict]) -> list[dict]:
+def memory(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     out = []
     for pid in sorted({r["pid"] for r in rows}):
         mine = sorted((r["worker_cases"], r["worker_peak_rss_mb"]) for r in rows if r["pid"] == pid)
@@ -152,7 +153,7 @@ def main() -> None:
     spec = load_spec(spec3d)
     courses, riders = load_inputs(spec)
     solve_case(courses[spec.courses[0]], expand(spec, courses, riders)[0])
-    runs: dict[str, list[dict]] = {"loop": [], "ray1": [], "ray2": []}
+    runs: dict[str, list[dict[str, Any]]] = {"loop": [], "ray1": [], "ray2": []}
     for i in range(args.repeats):
         runs["loop"].append(plain_loop(spec3d))
         runs["ray1"].append(ray_sweep(spec3d, 1, folder))
@@ -163,10 +164,10 @@ def main() -> None:
               f"ray2 {runs['ray2'][-1]['cases_per_min_steady']:.1f} cases/min (steady)", flush=True)
 
     def med(kind: str, key: str) -> float:
-        return statistics.median(r[key] for r in runs[kind])
+        return float(statistics.median(r[key] for r in runs[kind]))
 
     loop_cpm = med("loop", "cases_per_min_steady")
-    result: dict = {"load_avg_end": load(), "cases_3d": runs["loop"][0]["cases"]}
+    result: dict[str, Any] = {"load_avg_end": load(), "cases_3d": runs["loop"][0]["cases"]}
     for kind in ("loop", "ray1", "ray2"):
         result[f"{kind}_cases_per_min_steady"] = round(med(kind, "cases_per_min_steady"), 1)
         result[f"{kind}_cases_per_min_end_to_end"] = round(

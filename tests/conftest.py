@@ -38,7 +38,8 @@ def requires_ros(ros_unavailable: str | None) -> None:
 
 
 @pytest.fixture
-def ros_env(requires_ros: None, monkeypatch: pytest.MonkeyPatch) -> dict[str, str]:
+def ros_env(requires_ros: None,  # noqa: ARG001  (requested for its skip)
+            monkeypatch: pytest.MonkeyPatch) -> dict[str, str]:
     """Loopback-only Fast DDS on a random ROS_DOMAIN_ID of this test's own, set in this
     process (for in-process rclpy) and returned as a full environment for subprocesses.
 

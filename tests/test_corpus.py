@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -27,7 +28,7 @@ CORPUS = COURSES + RIDES
 runner = CliRunner()
 
 
-def run(*args: str) -> dict:
+def run(*args: str) -> dict[str, Any]:
     """Invoke the CLI with --json; return its one JSON object, asserting the contract."""
     result = runner.invoke(app, [*args, "--json"])
     assert result.exception is None or isinstance(result.exception, SystemExit), (
@@ -48,7 +49,7 @@ def test_course_and_short_1d_plan(rel: str, tmp_path: Path) -> None:
     info = run("course", "info", str(src))
     assert info["_exit"] == 0, info
     assert info["length_m"] > 10_000 and info["n_corners"] == len(info["corners"])
-    assert -0.25 <= info["min_grade"] and info["max_grade"] <= 0.25
+    assert info["min_grade"] >= -0.25 and info["max_grade"] <= 0.25
     # No turn a bike cannot ride (real hairpins turn ~180 deg, so the angle says nothing).
     assert all(c["min_radius_m"] > 5.0 for c in info["corners"]), info["corners"]
     assert {"trim", "elevation", "road_width"} <= set(info["build"])

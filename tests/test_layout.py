@@ -4,6 +4,7 @@ the planner never import logs, ROS or Rerun, no import cycles, small documented 
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
@@ -28,6 +29,7 @@ def _modules() -> dict[str, Path]:
     return {_module_name(p): p for p in sorted(PKG.rglob("*.py"))}
 
 
+@functools.cache
 def _imports(path: Path) -> set[str]:
     """Every module named by an import anywhere in the file (function-level ones too)."""
     names: set[str] = set()
@@ -50,7 +52,7 @@ MODULES = _modules()
 
 @pytest.mark.parametrize("module", sorted(m for m in MODULES if _stage(m)))
 def test_imports_only_downward(module: str) -> None:
-    own = STAGES.index(_stage(module))  # type: ignore[arg-type]
+    own = STAGES.index(_stage(module))
     upward = sorted(name for name in _imports(MODULES[module])
                     if name in MODULES and _stage(name) and STAGES.index(_stage(name)) > own)
     assert not upward, f"{module} ({STAGES[own]}) imports a later stage: {upward}"
@@ -92,3 +94,35 @@ def test_module_is_small_and_says_what_it_is_for(module: str) -> None:
     assert lines <= MAX_LINES, f"{module}: {lines} lines (limit {MAX_LINES})"
     docstring = ast.get_docstring(ast.parse(source))
     assert docstring and docstring.strip(), f"{module}: no module docstring"
+
+
+def _bound_and_exported(tree: ast.Module) -> tuple[set[str], list[str] | None]:
+    """Names a module binds at top level, and its `__all__` (None if it has none)."""
+    bound: set[str] = set()
+    exported: list[str] | None = None
+    for node in tree.body:
+        if isinstance(node, ast.Import | ast.ImportFrom):
+            bound.update((alias.asname or alias.name).split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            bound.add(node.name)
+        elif isinstance(node, ast.Assign | ast.AnnAssign):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            names = {t.id for t in targets if isinstance(t, ast.Name)}
+            if "__all__" in names and node.value is not None:
+                exported = list(ast.literal_eval(node.value))
+            bound.update(names)
+    return bound, exported
+
+
+PACKAGES = sorted(m for m, p in MODULES.items() if p.name == "__init__.py")
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_package_exports_its_public_names(package: str) -> None:
+    """Each (sub)package's `__init__` lists its public names in `__all__`, once each, and
+    every one of them is bound there (a name that moved away fails here, not at import)."""
+    bound, exported = _bound_and_exported(ast.parse(MODULES[package].read_text()))
+    assert exported, f"{package}: no __all__"
+    assert len(set(exported)) == len(exported), f"{package}: __all__ repeats a name"
+    missing = sorted(set(exported) - bound)
+    assert not missing, f"{package}: __all__ names what it does not bind: {missing}"

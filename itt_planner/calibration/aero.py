@@ -15,15 +15,15 @@ it). Summed from the start of a stretch and compared with the recorded altitude 
 free offset per stretch, it is fitted by nonlinear least squares
 (`scipy.optimize.least_squares`) for (crr, CdA, wind) with the mass given, or
 (mass, CdA, wind) with crr at its prior when the mass is not given (mass and crr are
-nearly collinear: climbs pin the mass, but not both). Kinetic energy telescopes, so speed noise enters only
-at the stretch ends. Only intervals where the balance holds are used: pedalling (a
+nearly collinear: climbs pin the mass, but not both). Kinetic energy telescopes, so speed
+noise enters only at the stretch ends. Only intervals where the balance holds are used: pedalling (a
 rider who coasts may be braking, which a power meter cannot see), above walking speed,
 no hard acceleration or braking, no tight cornering (GPS yaw rate), and not next to a
 gap. The uncertainty is a bootstrap over stretches (the errors within one stretch are
 correlated: wind, altimeter drift). crr is weakly identified without speed variety; a
 crr outside a plausible band is fixed to its prior and said so; a mass at the edge of
-its range is a refusal (pass it). A CdA no physical rider has is a refusal: the speed cannot come from
-that power (a virtual ride's simulated speed, a wrong mass, a broken meter).
+its range is a refusal (pass it). A CdA no physical rider has is a refusal: the speed
+cannot come from that power (a virtual ride's simulated speed, a wrong mass, a broken meter).
 """
 
 from __future__ import annotations
@@ -151,8 +151,10 @@ class _Problem:
 
     def solve(self, x0: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
         x0 = np.clip(x0, self.lower + 1e-9, self.upper - 1e-9)
-        res = least_squares(lambda x: self.des.residual(*self.unpack(x), weights=weights), x0,
-                            bounds=(self.lower, self.upper), x_scale="jac")
+        def residual(x: np.ndarray) -> np.ndarray:
+            return self.des.residual(*self.unpack(x), weights=weights)
+
+        res = least_squares(residual, x0, bounds=(self.lower, self.upper), x_scale="jac")
         return np.asarray(res.x)
 
     def start(self, mass: float, crr: float) -> np.ndarray:
@@ -248,7 +250,8 @@ def fit_day_wind(ride: RideSeries, mass_kg: float, crr: float, cda_m2: float,
         raise CalibrationError(f"{ride.source}: only {len(des.spans)} stretches where the power "
                                "balance holds; the wind of the day cannot be fitted")
     prob = _Problem(des, (), {"mass": mass_kg, "crr": crr, "cda": cda_m2}, True, (1.0, 1e3))
-    return prob.unpack(prob.solve(prob.start(mass_kg, crr)))[3][0]
+    wind: np.ndarray = prob.unpack(prob.solve(prob.start(mass_kg, crr)))[3][0]
+    return wind
 
 
 def _bootstrap(prob: _Problem, x: np.ndarray, n_stretches: int, st: AeroSettings

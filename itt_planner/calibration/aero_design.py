@@ -8,7 +8,9 @@ elevation, of recorded altitude against the altitude the power explains for give
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 import pymap3d
@@ -73,7 +75,7 @@ def usable_intervals(ride: RideSeries, sel: Selection, lateral: np.ndarray) -> n
     for shift in range(1, sel.guard_s + 1):  # the seconds next to a coast or corner
         bad[shift:] |= ~ok[:-shift]
         bad[:-shift] |= ~ok[shift:]
-    return ~bad
+    return cast(np.ndarray, ~bad)
 
 
 def stretches(ok: np.ndarray, sel: Selection) -> list[tuple[int, int]]:
@@ -83,7 +85,7 @@ def stretches(ok: np.ndarray, sel: Selection) -> list[tuple[int, int]]:
     for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
         pieces = max(1, int(np.ceil((b - a) / sel.max_stretch_s)))
         bounds = np.linspace(a, b, pieces + 1).round().astype(int)
-        out += [(int(lo), int(hi)) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)
+        out += [(int(lo), int(hi)) for lo, hi in itertools.pairwise(bounds)
                 if hi - lo >= sel.min_stretch_s]
     return out
 
@@ -118,7 +120,7 @@ class Design:
 
     def _cum(self, inc: np.ndarray) -> np.ndarray:
         cs = np.concatenate([[0.0], np.cumsum(inc)])
-        return cs[self.cum_at] - cs[self.cum_base]
+        return cast(np.ndarray, cs[self.cum_at] - cs[self.cum_base])
 
     def virtual_height(self, mass_kg: float, crr: float, cda_m2: float,
                        wind: np.ndarray) -> np.ndarray:
@@ -127,8 +129,9 @@ class Design:
         u = wind[self.ride_of, 0] * self.cos_h + wind[self.ride_of, 1] * self.sin_h
         air = self.v_mps - u
         drag = 0.5 * cda_m2 * self.rho_dt * air * np.abs(air) * self.v_mps
-        return (self._cum(self.work_j) / (mass_kg * g) - self._cum(self.dv2_m2ps2) / (2 * g)
-                - crr * self._cum(self.dist_m) - self._cum(drag) / (mass_kg * g))
+        height = (self._cum(self.work_j) / (mass_kg * g) - self._cum(self.dv2_m2ps2) / (2 * g)
+                  - crr * self._cum(self.dist_m) - self._cum(drag) / (mass_kg * g))
+        return cast(np.ndarray, height)
 
     def residual(self, mass_kg: float, crr: float, cda_m2: float, wind: np.ndarray,
                  weights: np.ndarray | None = None) -> np.ndarray:
@@ -136,7 +139,7 @@ class Design:
         r = self.h_m - self.virtual_height(mass_kg, crr, cda_m2, wind)
         count = np.bincount(self.group)
         r = r - (np.bincount(self.group, weights=r) / count)[self.group]
-        return r if weights is None else r * np.sqrt(weights[self.group])
+        return r if weights is None else cast(np.ndarray, r * np.sqrt(weights[self.group]))
 
 
 def design(rides: list[RideSeries], sel: Selection, efficiency: float) -> Design:

@@ -12,18 +12,19 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from itt_planner.calibration.aero import AeroFit, AeroSettings, fit_aero
 from itt_planner.calibration.cornering import CorneringFit, fit_cornering
 from itt_planner.calibration.power_curve import CpFit, fit_cp, mmp_curve
 from itt_planner.calibration.ride_data import CalibrationError, RideSeries, prepare_ride
 from itt_planner.course.geometry import Course
+from itt_planner.course.track_files import Recording, read_recording
 from itt_planner.errors import CourseError
 from itt_planner.model.rider import PRESETS, Rider
-from itt_planner.course.track_files import Recording, read_recording
 
 
 @dataclass(frozen=True)
@@ -87,7 +88,7 @@ def rider_fields() -> set[str]:
     return {f.name for f in dataclasses.fields(Rider)}
 
 
-def load_rides(paths: list[str | Path] | list[Recording], temperature_c: float | None
+def load_rides(paths: Sequence[str | Path | Recording], temperature_c: float | None
                ) -> list[RideSeries]:
     """Read and prepare each ride (refusals name the file).
 
@@ -113,7 +114,7 @@ def ride_courses(rides: list[RideSeries], course: str | None) -> list[Course]:
     return [load_course(r.source) for r in rides]
 
 
-def calibrate(rides: list[str | Path] | list[Recording],
+def calibrate(rides: Sequence[str | Path | Recording],
               options: CalibrationOptions = CalibrationOptions(),
               courses: list[Course] | None = None) -> CalibrationResult:
     """Fit one rider to the rides (see the module docstring).
@@ -195,10 +196,11 @@ def rider_yaml(result: CalibrationResult) -> str:
     fitted = ["name", "mass_kg", "drag_area_m2", "crr", "critical_power_w", "w_prime_j",
               "max_power_w", "drivetrain_efficiency", "max_lateral_accel_mps2"]
     base = PRESETS[opts.preset]
-    winds = [] if result.aero is None else [
-        f"# wind of the day fitted on {src}: {w['speed_kmh']} +- {w['std_kmh']} km/h from "
-        f"{w['from_deg']:.0f} deg (a condition, not a rider field)"
-        for src, w in zip(result.sources, result.aero.as_dict()["wind"], strict=False)]
+    day_winds = [] if result.aero is None else cast(list[dict[str, float]],
+                                                    result.aero.as_dict()["wind"])
+    winds = [f"# wind of the day fitted on {src}: {w['speed_kmh']} +- {w['std_kmh']} km/h from "
+             f"{w['from_deg']:.0f} deg (a condition, not a rider field)"
+             for src, w in zip(result.sources, day_winds, strict=False)]
     lines = [f"# itt-planner calibrate: {', '.join(result.sources)}", *winds,
              *(f"# refused {k}: {v}" for k, v in result.refusals.items()),
              f"preset: {opts.preset}"]

@@ -22,8 +22,8 @@ import numpy as np
 
 from itt_planner.calibration.matching import course_progress
 from itt_planner.calibration.ride_data import CalibrationError, RideSeries
-from itt_planner.model.conditions import GRAVITY_MPS2
 from itt_planner.course.geometry import Course
+from itt_planner.model.conditions import GRAVITY_MPS2
 
 #: Relative radius error of a course fitted from 1 Hz GPS (see module doc).
 RADIUS_REL_ERROR = 0.25

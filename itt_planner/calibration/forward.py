@@ -17,17 +17,18 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from itt_planner.calibration.ride_data import CalibrationError
 from itt_planner.calibration.ride_on_course import RideOnCourse
-from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.course.geometry import Course, detect_corners
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.model.dynamics import build_1d, rk4_step
 from itt_planner.model.params import ModelParams
-from itt_planner.ocp.plan import PLAN_ARRAYS, Plan
 from itt_planner.model.rider import Rider
+from itt_planner.ocp.plan import PLAN_ARRAYS, Plan
 
 #: The virtual rider's advised speed in the replay: high, so it brakes only for grip.
 _NO_SPEED_LIMIT_MPS = 30.0
@@ -124,7 +125,7 @@ def forward_3d(course: Course, rider: Rider, ride: RideOnCourse,
                 "width_left_m", "width_right_m")})
     s = course.s_m
     power = np.interp(s + s0, ride.s_m, ride.power_w)
-    arrays = {name: np.zeros(len(s)) for name in PLAN_ARRAYS}
+    arrays: dict[str, Any] = {name: np.zeros(len(s)) for name in PLAN_ARRAYS}
     speed = np.full(len(s), _NO_SPEED_LIMIT_MPS)
     # The virtual rider's lean loop is unstable at walking pace (it diverged within 40 m
     # from 1 m/s on a real start): it starts rolling; the extra kinetic energy is ~0.5 kJ.

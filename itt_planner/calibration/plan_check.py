@@ -65,7 +65,7 @@ def plan_check(plan: Plan, ride: RideOnCourse, course: Course) -> dict[str, Any]
         return float((np.interp(b, s, t_plan) - np.interp(a, s, t_plan))
                      - (np.interp(b, s, t_ride) - np.interp(a, s, t_ride)))
 
-    rows = [{"kind": k, "start_m": round(a, 0), "end_m": round(b, 0),
+    rows: list[dict[str, Any]] = [{"kind": k, "start_m": round(a, 0), "end_m": round(b, 0),
              "plan_minus_ride_s": round(won(a, b), 1)} for k, a, b in sections(course, s[0], s[-1])]
     rows += [{"kind": "corner", "start_m": round(c.entry_s_m, 0), "end_m": round(c.exit_s_m, 0),
               "radius_m": round(c.min_radius_m, 1),

@@ -11,13 +11,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import pymap3d
 
+from itt_planner.course.track_files import Recording
 from itt_planner.errors import IttError
 from itt_planner.logs.ride_import import EARTH_RADIUS_M, PAUSE_MIN_S, POWER_SPIKE_W
-from itt_planner.course.track_files import Recording
 
 #: Standard atmosphere (ICAO): sea-level pressure (Pa), lapse-rate exponent, scale.
 _P0_PA = 101_325.0
@@ -102,9 +103,8 @@ def record_temperature_c(path: Path) -> float | None:
     with fitdecode.FitReader(str(path), check_crc=fitdecode.CrcCheck.WARN) as reader:
         for frame in reader:
             if frame.frame_type == fitdecode.FIT_FRAME_DATA and frame.name == "record":
-                for f in frame.fields:
-                    if f.name == "temperature" and f.value is not None:
-                        values.append(float(f.value))
+                values.extend(float(f.value) for f in frame.fields
+                              if f.name == "temperature" and f.value is not None)
     return float(np.median(values)) if values else None
 
 
@@ -184,7 +184,7 @@ def _fill(values: np.ndarray) -> np.ndarray:
     if good.all():
         return values
     idx = np.arange(len(values))
-    return np.interp(idx, idx[good], values[good])
+    return cast(np.ndarray, np.interp(idx, idx[good], values[good]))
 
 
 def smooth(values: np.ndarray, block: np.ndarray, window: int) -> np.ndarray:

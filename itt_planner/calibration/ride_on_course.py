@@ -9,6 +9,7 @@ get there (stops and pauses removed: the models never stop at a junction).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -88,5 +89,4 @@ def _interval_mean(grid: np.ndarray, s: np.ndarray, values: np.ndarray) -> np.nd
     total = np.bincount(cell, weights=values, minlength=len(grid))
     count = np.bincount(cell, minlength=len(grid))
     have = count > 0
-    out = np.interp(grid, grid[have], total[have] / count[have])
-    return out
+    return cast(np.ndarray, np.interp(grid, grid[have], total[have] / count[have]))

@@ -22,8 +22,8 @@ from itt_planner.calibration.physics_check import physics_check
 from itt_planner.calibration.plan_check import plan_check
 from itt_planner.calibration.ride_data import CalibrationError, RideSeries
 from itt_planner.calibration.ride_on_course import RideOnCourse, ride_on_course
-from itt_planner.model.conditions import Conditions
 from itt_planner.course.geometry import Course
+from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
 
 log = logging.getLogger(__name__)
@@ -101,8 +101,8 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
     figures["physics"] = [physics_check(run, on_course, course) for run in runs]
     plans = []
     if plan_models:
-        from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415  (CasADi OCP, lazy)
         from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
+        from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415  (CasADi OCP, lazy)
 
         figures["plans"] = []
         for model in plan_models:

@@ -9,16 +9,13 @@ from __future__ import annotations
 
 from itt_planner.cli._app import app
 
-# Importing the command modules registers their commands on `app`.
-from itt_planner.cli import course as _course  # noqa: F401,E402
-from itt_planner.cli import ridelog as _ridelog  # noqa: F401,E402
-from itt_planner.cli import report as _report  # noqa: F401,E402
-from itt_planner.cli import simulate as _simulate  # noqa: F401,E402
-from itt_planner.cli import node as _node  # noqa: F401,E402
-from itt_planner.cli import plan as _plan  # noqa: F401,E402
-from itt_planner.cli import bags as _bags  # noqa: F401,E402
-from itt_planner.cli import calibrate as _calibrate  # noqa: F401,E402
-from itt_planner.cli import sweep as _sweep  # noqa: F401,E402
+# Importing the command modules registers their commands on `app`, in `--help` order.
+# isort: off
+from itt_planner.cli import course, ridelog, report, simulate, node  # noqa: F401
+from itt_planner.cli import plan, bags, calibrate, sweep  # noqa: F401
+# isort: on
+
+__all__ = ["app", "main"]
 
 
 def main() -> None:

@@ -23,12 +23,12 @@ def make_bag_cli(
     as_json: bool = JSON_OPTION,
 ) -> None:
     """Simulate a rider following the full-course plan (noisy sensors) and log the ride."""
-    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.course.loader import load_course  # noqa: PLC0415
-    from itt_planner.sim.demo_bags import record_simulated_ride  # noqa: PLC0415
-    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
-    from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
+    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
+    from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
+    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
+    from itt_planner.sim.demo_bags import record_simulated_ride  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         built, who = load_course(course), load_rider(rider)

@@ -81,17 +81,17 @@ def _human_validation(r: dict[str, Any]) -> str:
                                              f"{h['mae_kmh']} km/h (floor {h['noise_floor_kmh']})")
             for h in r["holdout"])
     lines = [f"{r['ride']} on {r['course']} ({r['covered_m'] / 1000:.1f} km), rider {r['rider']}:"]
-    for p in r["physics"]:
-        lines.append(f"  physics {p['model']} ({p['conditions']}): finish {p['finish_s']} s vs {p['ride_moving_s']} s "
-                     f"({p['finish_error_pct']:+.2f} %), speed MAE {p['mae_kmh']} RMSE "
-                     f"{p['rmse_kmh']} bias {p['bias_kmh']} km/h, {100 * p['share_within_2kmh']:.0f}"
-                     f" % within 2 km/h; noise floor {p['noise_floor_kmh']} km/h")
+    lines += [f"  physics {p['model']} ({p['conditions']}): finish {p['finish_s']} s vs "
+              f"{p['ride_moving_s']} s ({p['finish_error_pct']:+.2f} %), speed MAE "
+              f"{p['mae_kmh']} RMSE {p['rmse_kmh']} bias {p['bias_kmh']} km/h, "
+              f"{100 * p['share_within_2kmh']:.0f} % within 2 km/h; noise floor "
+              f"{p['noise_floor_kmh']} km/h" for p in r["physics"]]
     if "physics_3d" in r:
         lines.append(f"  physics 3d: {r['physics_3d']}")
-    for p in r.get("plans", []):
-        lines.append(f"  plan {p['model']} [{p['solver_status']}]: {p['plan_finish_s']} s vs ride "
-                     f"{p['ride_moving_s']} s ({p['plan_minus_ride_pct']:+.2f} %), power MAE "
-                     f"{p['power_mae_w']} W; plan - ride by kind (s): {p['time_by_kind_s']}")
+    lines += [f"  plan {p['model']} [{p['solver_status']}]: {p['plan_finish_s']} s vs ride "
+              f"{p['ride_moving_s']} s ({p['plan_minus_ride_pct']:+.2f} %), power MAE "
+              f"{p['power_mae_w']} W; plan - ride by kind (s): {p['time_by_kind_s']}"
+              for p in r.get("plans", [])]
     return "\n".join(lines)
 
 

@@ -29,11 +29,11 @@ _WIDTH = typer.Option(None, "--road-width", help="Full road width of a GPS cours
 def _options(start: str | None, finish: str | None, route: Path | None, elevation: str,
              tolerance: float, width: float | None) -> Any:
     """`CourseOptions` from the CLI flags, or None when all are at their defaults."""
-    from itt_planner.course.geometry import GPS_ROAD_WIDTH_M  # noqa: PLC0415
     from itt_planner.course.elevation import ElevationOptions  # noqa: PLC0415
     from itt_planner.course.fit import CourseOptions  # noqa: PLC0415
-    from itt_planner.course.trim import TrimOptions, parse_mark  # noqa: PLC0415
+    from itt_planner.course.geometry import GPS_ROAD_WIDTH_M  # noqa: PLC0415
     from itt_planner.course.track_files import read_recording  # noqa: PLC0415
+    from itt_planner.course.trim import TrimOptions, parse_mark  # noqa: PLC0415
 
     if (start, finish, route, elevation, tolerance, width) == (None, None, None, "auto", 5.0,
                                                                None):
@@ -49,10 +49,11 @@ def _human_info(info: dict[str, Any]) -> str:
     lines = [
         f"{info['name']}: {info['length_m'] / 1000:.2f} km, +{info['gain_m']:.0f} m / "
         f"-{info['loss_m']:.0f} m, grades {info['min_grade'] * 100:.1f} % to "
-        f"{info['max_grade'] * 100:.1f} %, {'closed loop' if info['closed_loop'] else 'point to point'}"
+        f"{info['max_grade'] * 100:.1f} %, "
+        f"{'closed loop' if info['closed_loop'] else 'point to point'}"
         + (" (SYNTHETIC)" if info["synthetic"] else ""),
-        f"{info['n_corners']} corners, tightest radius {info['min_radius_m']} m; road width "
-        f"{info['road_width_m'][0]:g}-{info['road_width_m'][1]:g} m",
+        (f"{info['n_corners']} corners, tightest radius {info['min_radius_m']} m; road width "
+         f"{info['road_width_m'][0]:g}-{info['road_width_m'][1]:g} m"),
     ]
     build = info.get("build") or {}
     if "trim" in build:

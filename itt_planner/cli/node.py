@@ -14,12 +14,12 @@ import signal
 import sys
 import threading
 from pathlib import Path
-from typing import Any
 
 import typer
 
 from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit
 from itt_planner.errors import IttError
+
 
 def _ros() -> None:
     """Raise set-up's one-line reason when rclpy or the built messages do not import."""
@@ -66,9 +66,8 @@ def node_cli(
     with errors_to_exit(as_json):
         _ros()
         _log_to_stderr()
-        from rclpy.parameter import Parameter  # noqa: PLC0415
-
         from itt_planner_ros import pacing_node  # noqa: PLC0415
+        from rclpy.parameter import Parameter  # noqa: PLC0415
 
         given = {"course": course, "rider": rider, "use_sim_time": use_sim_time or None,
                  "output_log": output_log, "state_file": state_file, "rerun_sink": rerun,
@@ -99,7 +98,8 @@ def play_cli(
     start_offset_s: float = typer.Option(0.0, "--start-offset", help="Skip the first s."),
     topic: list[str] = typer.Option([], "--topics", help="Only these topics (repeat)."),
     wait_for_matched_s: float = typer.Option(
-        0.0, "--wait-for-matched", help="Wait up to s for subscribers of the input topics (and of /clock with --clock)."),
+        0.0, "--wait-for-matched",
+        help="Wait up to s for subscribers of the input topics (and of /clock with --clock)."),
     namespace: str = typer.Option("/itt", "--namespace", help="Namespace of the log's topics."),
     as_json: bool = JSON_OPTION,
 ) -> None:

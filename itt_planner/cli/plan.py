@@ -61,11 +61,12 @@ def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
 
 
 def _human(r: dict[str, Any]) -> str:
-    lines = [f"{r['course']} ({r['model']}): {r['finish_time_s']:.1f} s, {r['mean_speed_kmh']} km/h, "
-             f"{r['mean_power_w']} W, W' end {r['w_prime_end_j']:.0f} J, max lean "
-             f"{r['max_lean_deg']} deg  [{r['status']}: {r['solver_status']}, "
-             f"verified {r['verified']}, {r['iterations']} it, "
-             f"{r['n_nodes']} nodes, {r['solve_time_s']} s]"]
+    lines = [(f"{r['course']} ({r['model']}): {r['finish_time_s']:.1f} s, "
+              f"{r['mean_speed_kmh']} km/h, "
+              f"{r['mean_power_w']} W, W' end {r['w_prime_end_j']:.0f} J, max lean "
+              f"{r['max_lean_deg']} deg  [{r['status']}: {r['solver_status']}, "
+              f"verified {r['verified']}, {r['iterations']} it, "
+              f"{r['n_nodes']} nodes, {r['solve_time_s']} s]")]
     lines += [f"  corner {c['apex_s_m'] / 1000:6.2f} km R {c['min_radius_m']:5.1f} m: "
               f"{c['entry_speed_kmh']}/{c['apex_speed_kmh']}/{c['exit_speed_kmh']} km/h, "
               f"lean {c['max_lean_deg']} deg, {c['time_s']} s" for c in r["corners"]]
@@ -99,11 +100,11 @@ def plan_cli(
     cap, found the problem infeasible, or the plan failed verification (the figures are
     printed with that status), unless --allow-unconverged.
     """
-    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.course.loader import load_course  # noqa: PLC0415
+    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
+    from itt_planner.model.rider import load_rider  # noqa: PLC0415
     from itt_planner.ocp.course_problem import solve_plan  # noqa: PLC0415
     from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
-    from itt_planner.model.rider import load_rider  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         built = load_course(course)

@@ -11,8 +11,8 @@ from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit, progres
 
 
 def _human_import(r: dict[str, Any]) -> str:
-    lines = [f"wrote {r['output']}: {r['records']} records, "
-             f"{r['duration_s'] / 3600:.2f} h from first to last record"]
+    lines = [(f"wrote {r['output']}: {r['records']} records, "
+              f"{r['duration_s'] / 3600:.2f} h from first to last record")]
     lines += [f"  {topic:24s} {count:7d} messages" for topic, count in r["topics"].items()]
     longest = max((p["duration_s"] for p in r["pauses"]), default=0.0)
     lines.append(f"  {len(r['pauses'])} pauses (longest {longest:.0f} s), "
@@ -39,9 +39,9 @@ def import_cli(
 
 
 def _human_replay(r: dict[str, Any]) -> str:
-    lines = [f"replayed {r['messages_in']} messages ({r['ride_duration_s'] / 60:.1f} min of "
-             f"ride) in {r['wall_time_s']:.1f} s: {r['realtime_factor']:.1f}x real time, "
-             f"{r['advice_out']} advice ({r['fallbacks']} fallbacks)"]
+    lines = [(f"replayed {r['messages_in']} messages ({r['ride_duration_s'] / 60:.1f} min of "
+              f"ride) in {r['wall_time_s']:.1f} s: {r['realtime_factor']:.1f}x real time, "
+              f"{r['advice_out']} advice ({r['fallbacks']} fallbacks)")]
     lines += [f"  wrote {r[k]}" for k in ("output", "rrd") if r[k]]
     lines += [f"  warning: {w}" for w in r["warnings"]]
     lines += [f"  ERROR: {e}" for e in r["errors"]]
@@ -75,8 +75,8 @@ def replay_cli(
 ) -> None:
     """Replay a ride log through the pacing engine; write advice to MCAP (and Rerun)."""
     from itt_planner.errors import IttError  # noqa: PLC0415
+    from itt_planner.session.config import SessionConfig  # noqa: PLC0415
     from itt_planner.session.replay import ReplaySettings, parse_speed, replay_ride  # noqa: PLC0415
-    from itt_planner.session.ride_session import SessionConfig  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         try:

@@ -11,8 +11,8 @@ from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit, progres
 
 
 def _human(r: dict[str, Any]) -> str:
-    lines = [f"{r['course']} / {r['rider']} / {r['scenario']} (seed {r['seed']}): "
-             f"full-course optimum {r['plan_finish_time_s']:.1f} s"]
+    lines = [(f"{r['course']} / {r['rider']} / {r['scenario']} (seed {r['seed']}): "
+              f"full-course optimum {r['plan_finish_time_s']:.1f} s")]
     for policy in ("replanned", "open_loop", "even_cp"):
         p = r[policy]
         lines.append(f"  {policy:10s} finish {p['finish_time_s']:8.1f} s   "
@@ -45,12 +45,16 @@ def simulate_cli(
     """Ride a course in closed loop (3D model in time, noisy sensors, the pacing engine)
     and compare with following the full-course plan blindly and with even CP pacing.
     Plans are solved for the lateral grip the virtual rider uses."""
-    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.course.loader import load_course  # noqa: PLC0415
     from itt_planner.live.engine import EngineSettings  # noqa: PLC0415
-    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
-    from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
+    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
+    from itt_planner.ocp import (  # noqa: PLC0415
+        HorizonPlanner,
+        HorizonSettings,
+        OcpSettings,
+        load_or_solve,
+    )
     from itt_planner.sim import compare_policies, planning_conditions  # noqa: PLC0415
 
     with errors_to_exit(as_json):
@@ -60,9 +64,11 @@ def simulate_cli(
         # The optimum for the grip the virtual rider uses (belief = truth in nominal).
         plan = load_or_solve(built, who, planning_conditions(conditions), OcpSettings(), "3d",
                              cache_dir=cache_dir)
+        # The replanning rider's horizon planner believes what the plan was solved for.
+        planner = HorizonPlanner(built, who, plan, conditions=planning_conditions(conditions),
+                                 settings=HorizonSettings(horizon_m=horizon_m))
         result = compare_policies(
             built, who, plan, scenario=scenario, seed=seed, conditions=conditions,
-            engine_settings=EngineSettings(replan_period_s=replan_period_s,
-                                           horizon_m=horizon_m),
-            progress=progress_enabled())
+            engine_settings=EngineSettings(replan_period_s=replan_period_s),
+            planner=planner, progress=progress_enabled())
         emit(result, as_json, _human)

@@ -17,11 +17,11 @@ from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit, progres
 
 def _human(r: dict[str, Any]) -> str:
     counts = r["counts"]
-    lines = [f"{r['output']}: {r['cases']} cases, {r['already_done']} already recorded, "
-             f"{r['solved']} solved in {r['wall_s']:.1f} s ({r['cases_per_min']:.1f}/min on "
-             f"{r['workers']} workers, {len(r['nodes'])} node(s))",
-             f"  converged {counts.get('converged', 0)}, not converged "
-             f"{counts.get('not_converged', 0)}, failed {counts.get('failed', 0)}"]
+    lines = [(f"{r['output']}: {r['cases']} cases, {r['already_done']} already recorded, "
+              f"{r['solved']} solved in {r['wall_s']:.1f} s ({r['cases_per_min']:.1f}/min on "
+              f"{r['workers']} workers, {len(r['nodes'])} node(s))"),
+             (f"  converged {counts.get('converged', 0)}, not converged "
+              f"{counts.get('not_converged', 0)}, failed {counts.get('failed', 0)}")]
     return "\n".join(lines)
 
 

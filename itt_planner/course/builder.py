@@ -48,8 +48,8 @@ import numpy as np
 import yaml
 
 from itt_planner.course.geometry import DEFAULT_HALF_WIDTH_M, Course, GeoOrigin
-from itt_planner.errors import CourseError
 from itt_planner.course.track_files import file_sha256
+from itt_planner.errors import CourseError
 
 #: Anchor of built courses without an `origin`: deliberately not a road anywhere.
 FAKE_ORIGIN = GeoOrigin(lat_deg=0.0, lon_deg=0.0, alt_m=0.0)
@@ -172,7 +172,7 @@ def _segment(raw: Any, i: int, wl0: float, wr0: float) -> Segment:
 
 def _integrate(segments: list[Segment]) -> tuple[np.ndarray, ...]:
     """Dense centre line: x, y, z, heading, curvature, widths at every `_STEP_M`."""
-    xs, ys, zs, ths, ks, wls, wrs = [[0.0]], [[0.0]], [[0.0]], [[0.0]], [[0.0]], [[0.0]], [[0.0]]
+    xs, ys, zs, ths, ks, wls, wrs = ([np.zeros(1)] for _ in range(7))
     x = y = z = theta = kappa0 = 0.0
     wls[0][0], wrs[0][0] = segments[0].width_left_m, segments[0].width_right_m
     for seg in segments:

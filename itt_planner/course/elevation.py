@@ -26,9 +26,10 @@ Checks, reported in `Course.build["elevation"]` and shown by `course info`:
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pymap3d
@@ -36,8 +37,8 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 from scipy.spatial import cKDTree
 
 from itt_planner.course.geometry import GeoOrigin
-from itt_planner.errors import CourseError
 from itt_planner.course.track_files import Recording
+from itt_planner.errors import CourseError
 
 SOURCES = ("auto", "device", "smoothed", "route", "mix")
 
@@ -109,12 +110,12 @@ def build_profile(s: np.ndarray, x: np.ndarray, y: np.ndarray, origin: GeoOrigin
                 f"{options.tolerance_m:.0f} m; using {source}")
     z = profiles[source]
     suspects = suspect_grades(s, z, options)
-    for f in suspects:
-        warnings.append(
-            f"suspect grade ({f['kind']}) {f['from_s_m'] / 1000:.2f}-{f['to_s_m'] / 1000:.2f} km: "
-            f"{f['min_grade'] * 100:.1f} % to {f['max_grade'] * 100:.1f} %"
-            + (f", {f['depth_m']:.0f} m deep" if "depth_m" in f else "")
-            + " in the " + source + " altitude; check it (--elevation, --route)")
+    warnings.extend(
+        f"suspect grade ({f['kind']}) {f['from_s_m'] / 1000:.2f}-{f['to_s_m'] / 1000:.2f} km: "
+        f"{f['min_grade'] * 100:.1f} % to {f['max_grade'] * 100:.1f} %"
+        + (f", {f['depth_m']:.0f} m deep" if "depth_m" in f else "")
+        + " in the " + source + " altitude; check it (--elevation, --route)"
+        for f in suspects)
     report = {
         "source": source, "requested": options.source, "tolerance_m": options.tolerance_m,
         "profiles": {k: _profile_stats(s, v) for k, v in profiles.items()},
@@ -171,7 +172,7 @@ def mix_profiles(s: np.ndarray, z_device: np.ndarray, z_route: np.ndarray,
     weight = gaussian_filter1d(maximum_filter1d(bad.astype(float), margin, mode="nearest"),
                                options.mix_margin_m / 3.0 / ds, mode="nearest")
     weight = np.clip(2.0 * weight, 0.0, 1.0)
-    return (1.0 - weight) * mixed + weight * z_route
+    return cast(np.ndarray, (1.0 - weight) * mixed + weight * z_route)
 
 
 def compare(s: np.ndarray, z_a: np.ndarray, z_b: np.ndarray, tolerance_m: float
@@ -202,7 +203,7 @@ def suspect_grades(s: np.ndarray, z: np.ndarray, options: ElevationOptions
         for a, b in _runs(sign * g > options.dip_grade, s, 20.0):
             stretches.append((a, b, float(z[b] - z[a])))
     stretches.sort()
-    for (a1, b1, dz1), (a2, b2, dz2) in zip(stretches, stretches[1:]):
+    for (a1, b1, dz1), (a2, b2, dz2) in itertools.pairwise(stretches):
         depth = min(abs(dz1), abs(dz2))
         if (dz1 * dz2 < 0 and s[a2] - s[b1] <= options.dip_span_m
                 and depth >= options.dip_min_depth_m
@@ -224,7 +225,7 @@ def _runs(mask: np.ndarray, s: np.ndarray, min_len_m: float) -> list[tuple[int, 
     breaks = np.flatnonzero(np.diff(s[idx]) > 50.0)
     starts = np.concatenate([[idx[0]], idx[breaks + 1]])
     ends = np.concatenate([idx[breaks], [idx[-1]]])
-    return [(int(a), int(b)) for a, b in zip(starts, ends) if s[b] - s[a] >= min_len_m]
+    return [(int(a), int(b)) for a, b in zip(starts, ends, strict=True) if s[b] - s[a] >= min_len_m]
 
 
 def _profile_stats(s: np.ndarray, z: np.ndarray) -> dict[str, float]:

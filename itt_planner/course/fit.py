@@ -39,18 +39,18 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, cast
 
 import numpy as np
 from scipy.interpolate import BSpline, make_smoothing_spline
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d, uniform_filter1d
 
-from itt_planner.course.geometry import GPS_ROAD_WIDTH_M, Course
 from itt_planner.course.elevation import ElevationOptions, build_profile
-from itt_planner.course.trim import TrimOptions, trim_track
-from itt_planner.errors import CourseError
+from itt_planner.course.geometry import GPS_ROAD_WIDTH_M, Course
 from itt_planner.course.track_clean import CleanSettings, Track, clean_fixes, close_loop
 from itt_planner.course.track_files import Recording, read_recording
+from itt_planner.course.trim import TrimOptions, trim_track
+from itt_planner.errors import CourseError
 
 
 @dataclass(frozen=True)
@@ -188,7 +188,7 @@ def _road_width(s: np.ndarray, options: CourseOptions) -> tuple[np.ndarray, dict
 
 
 # ---- plan view fit -----------------------------------------------------------------------
-def _fit_plan(track: Track, st: FitSettings
+def _fit_plan(track: Track, st: FitSettings  # noqa: PLR0915  (one pipeline; passes share state)
               ) -> tuple[np.ndarray, ...]:
     """Adaptive smoothing splines through the fixes.
 
@@ -197,10 +197,7 @@ def _fit_plan(track: Track, st: FitSettings
     """
     x, y = track.x_m, track.y_m
     xy = np.column_stack([x, y])
-    if track.closed_loop:
-        xy_c = np.vstack([xy, xy[:1]])
-    else:
-        xy_c = xy
+    xy_c = np.vstack([xy, xy[:1]]) if track.closed_loop else xy
     u = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy_c, axis=0).T))])
     period = float(u[-1])
     n_pts = len(xy)
@@ -293,7 +290,7 @@ def _smooth_heading(s: np.ndarray, x: np.ndarray, y: np.ndarray, theta: np.ndarr
     correction bends the line by far less than 1/1000 m^-1.
     """
     ds = float(s[1] - s[0])
-    mode = "wrap" if closed else "nearest"
+    mode: Literal["wrap", "nearest"] = "wrap" if closed else "nearest"
     if closed:
         # theta gains a whole turn per lap; filter the periodic remainder.
         trend = (theta[-1] - theta[0]) * (s - s[0]) / (s[-1] - s[0])
@@ -360,7 +357,7 @@ def _curvature(spl: BSpline, u: np.ndarray) -> np.ndarray:
     d1 = spl.derivative(1)(u)
     d2 = spl.derivative(2)(u)
     num = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
-    return num / np.maximum(np.hypot(d1[:, 0], d1[:, 1]), 1e-9) ** 3
+    return cast(np.ndarray, num / np.maximum(np.hypot(d1[:, 0], d1[:, 1]), 1e-9) ** 3)
 
 
 # ---- altitude ------------------------------------------------------------------------------

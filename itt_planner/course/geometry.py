@@ -15,7 +15,7 @@ import json
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pymap3d
@@ -123,7 +123,7 @@ class Course:
         if len(x) < 3 or s_in[-1] <= 3 * ds_m:
             msg = f"course {name!r}: centre line too short ({s_in[-1]:.1f} m, {len(x)} points)"
             raise CourseError(msg)
-        n = int(math.floor(s_in[-1] / ds_m + 1e-9)) + 1
+        n = math.floor(s_in[-1] / ds_m + 1e-9) + 1
         s = np.linspace(0.0, (n - 1) * ds_m, n)
         xs, ys, zs = (np.interp(s, s_in, a) for a in (x, y, z))
         wl, wr = (np.interp(s, s_in, per_point[k]) for k in ("wl", "wr"))
@@ -154,7 +154,7 @@ class Course:
 
     def at(self, field: str, s_m: float | np.ndarray) -> np.ndarray:
         """Linear interpolation of one of the arrays (by attribute name) at `s_m`."""
-        return np.interp(s_m, self.s_m, getattr(self, field))
+        return cast(np.ndarray, np.interp(s_m, self.s_m, getattr(self, field)))
 
     def enu_at(self, s_m: float | np.ndarray, n_m: float | np.ndarray = 0.0
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -168,13 +168,15 @@ class Course:
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """ENU (m) -> WGS84 latitude, longitude (deg) and altitude (m)."""
         o = self.origin
-        return pymap3d.enu2geodetic(x_m, y_m, z_m, o.lat_deg, o.lon_deg, o.alt_m)
+        lla = pymap3d.enu2geodetic(x_m, y_m, z_m, o.lat_deg, o.lon_deg, o.alt_m)
+        return cast(tuple[np.ndarray, np.ndarray, np.ndarray], lla)
 
     def from_geodetic(self, lat_deg: np.ndarray, lon_deg: np.ndarray, alt_m: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """WGS84 latitude, longitude (deg), altitude (m) -> ENU (m)."""
         o = self.origin
-        return pymap3d.geodetic2enu(lat_deg, lon_deg, alt_m, o.lat_deg, o.lon_deg, o.alt_m)
+        enu = pymap3d.geodetic2enu(lat_deg, lon_deg, alt_m, o.lat_deg, o.lon_deg, o.alt_m)
+        return cast(tuple[np.ndarray, np.ndarray, np.ndarray], enu)
 
     def summary(self) -> dict[str, Any]:
         """The figures `itt-planner course info` prints (edge units: %, deg)."""

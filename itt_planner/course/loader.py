@@ -28,13 +28,13 @@ from typing import Any
 
 import yaml
 
-from itt_planner.course.geometry import COURSE_SUFFIX, GPS_ROAD_WIDTH_M, Course
 from itt_planner.course.builder import build_course_file
 from itt_planner.course.elevation import ElevationOptions
 from itt_planner.course.fit import CourseOptions, WidthStretch, fit_course
+from itt_planner.course.geometry import COURSE_SUFFIX, GPS_ROAD_WIDTH_M, Course
+from itt_planner.course.track_files import SUFFIXES, file_sha256, read_recording
 from itt_planner.course.trim import TrimOptions, parse_mark
 from itt_planner.errors import CourseError
-from itt_planner.course.track_files import SUFFIXES, file_sha256, read_recording
 
 DEMO_COURSES = ("verona-like", "rovereto-like")
 _GPS_KEYS = {"track", "route", "start", "finish", "elevation", "elevation_tolerance_m",

@@ -26,8 +26,8 @@ import pymap3d
 from scipy.ndimage import uniform_filter1d
 
 from itt_planner.course.geometry import GeoOrigin
-from itt_planner.errors import CourseError
 from itt_planner.course.track_files import Recording
+from itt_planner.errors import CourseError
 
 
 @dataclass(frozen=True)
@@ -274,7 +274,7 @@ def _drop_spikes(x: np.ndarray, y: np.ndarray, t: np.ndarray | None,
     def plausible(a: int, b: int) -> bool:
         dist = float(np.hypot(x[b] - x[a], y[b] - y[a]))
         if t is not None and np.isfinite(t[a]) and np.isfinite(t[b]):
-            return dist <= settings.max_speed_mps * max(t[b] - t[a], 1.0) + 10.0
+            return bool(dist <= settings.max_speed_mps * max(t[b] - t[a], 1.0) + 10.0)
         return dist <= max(10.0 * typical * (b - a), 100.0)
 
     last = 0

@@ -13,6 +13,7 @@ import hashlib
 import io
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -73,7 +74,7 @@ def read_recording(path: str | Path) -> Recording:
         rec = readers[suffix](path)
     except CourseError:
         raise
-    except Exception as err:  # the parsers raise many unrelated types on bad input
+    except Exception as err:  # noqa: BLE001  (the parsers raise many unrelated types on bad input)
         msg = f"{path}: not a valid {suffix[1:].upper()} file ({type(err).__name__}: {err})"
         raise CourseError(msg) from None
     if len(rec) == 0:
@@ -94,7 +95,8 @@ def _read_gpx(path: Path) -> Recording:
     import gpxpy  # noqa: PLC0415  (lazy: only GPX needs it)
 
     gpx = gpxpy.parse(path.read_text(encoding="utf-8", errors="replace"))
-    points = [p for trk in gpx.tracks for seg in trk.segments for p in seg.points]
+    # Track points, or a route's points (gpxpy types them apart; both have what is read).
+    points: list[Any] = [p for trk in gpx.tracks for seg in trk.segments for p in seg.points]
     if not points:
         points = [p for rte in gpx.routes for p in rte.points]
     times = [p.time.timestamp() if p.time else None for p in points]
@@ -134,7 +136,7 @@ def _read_tcx(path: Path) -> Recording:
 def _read_fit(path: Path) -> Recording:
     import fitdecode  # noqa: PLC0415
 
-    rows: list[dict[str, object]] = []
+    rows: list[dict[str, Any]] = []
     device = ""
     with fitdecode.FitReader(str(path), check_crc=fitdecode.CrcCheck.WARN) as reader:
         for frame in reader:
@@ -151,10 +153,10 @@ def _read_fit(path: Path) -> Recording:
         out: list[float | None] = []
         for row in rows:
             value = next((row[n] for n in names if row.get(n) is not None), None)
-            out.append(None if value is None else float(value) * scale)  # type: ignore[arg-type]
+            out.append(None if value is None else float(value) * scale)
         return out
 
-    times = [r["timestamp"].timestamp() if r.get("timestamp") else None for r in rows]  # type: ignore[union-attr]
+    times = [r["timestamp"].timestamp() if r.get("timestamp") else None for r in rows]
     return Recording(
         path=path, sha256=file_sha256(path),
         lat_deg=_arr(col("position_lat", scale=_SEMICIRCLE_DEG)),

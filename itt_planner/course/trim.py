@@ -29,9 +29,9 @@ from typing import Any
 import numpy as np
 import pymap3d
 
-from itt_planner.errors import CourseError
 from itt_planner.course.track_clean import Track
 from itt_planner.course.track_files import Recording
+from itt_planner.errors import CourseError
 
 #: A turn-round is a heading reversal within this reach before and after it (m)...
 UTURN_REACH_M = 30.0
@@ -221,7 +221,7 @@ def find_uturns(x: np.ndarray, y: np.ndarray, dist: np.ndarray, *,
         return []
     u = np.arange(0.0, dist[-1], 5.0)
     px, py = np.interp(u, dist, x), np.interp(u, dist, y)
-    k = int(round(reach_m / 5.0))
+    k = round(reach_m / 5.0)
     ax, ay, bx, by = px[:-2 * k], py[:-2 * k], px[2 * k:], py[2 * k:]
     cx, cy = px[k:-k], py[k:-k]
     v1 = np.column_stack([cx - ax, cy - ay])

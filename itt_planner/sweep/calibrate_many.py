@@ -25,8 +25,8 @@ from typing import Any
 
 from tqdm import tqdm
 
-from itt_planner.errors import IttError
 from itt_planner.course.track_files import SUFFIXES
+from itt_planner.errors import IttError
 
 log = logging.getLogger(__name__)
 

@@ -15,13 +15,13 @@ import hashlib
 import itertools
 from dataclasses import dataclass
 
-from itt_planner.model.conditions import Conditions
 from itt_planner.course.geometry import Course
 from itt_planner.course.loader import load_course
 from itt_planner.errors import IttError
-from itt_planner.ocp.course_settings import OcpSettings
-from itt_planner.ocp.cache import plan_key
+from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider, load_rider
+from itt_planner.ocp.cache import plan_key
+from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.sweep.spec import Equipment, SweepSpec, SweepSpecError
 
 

@@ -63,7 +63,7 @@ def _keep_loopback() -> None:
     if constants is not None:
         # Ray read the variable at import, before we could set it; its own code reads the
         # constant at call time, so setting it has the effect the variable would have had.
-        constants.ENABLE_RAY_CLUSTER = False
+        constants.ENABLE_RAY_CLUSTER = False  # type: ignore[attr-defined]  # Ray's private module
 
 
 @contextmanager
@@ -74,7 +74,7 @@ def ray_session(address: str | None = None, workers: int | None = None) -> Itera
         RayClusterError: Ray failed to start or connect, or a local node is not on 127.0.0.1.
     """
     local = address is None
-    if local or is_loopback(address):
+    if address is None or is_loopback(address):
         _keep_loopback()
     import ray  # noqa: PLC0415 - the environment above must be set first
 
@@ -82,7 +82,7 @@ def ray_session(address: str | None = None, workers: int | None = None) -> Itera
         raise RayClusterError("Ray is already initialised in this process: one sweep at a time")
     kwargs: dict[str, Any] = {"log_to_driver": False, "configure_logging": False}
     try:
-        if local:
+        if address is None:
             ray.init(address="local", _node_ip_address=LOOPBACK, include_dashboard=False,
                      num_cpus=workers or os.cpu_count() or 1, **kwargs)
         else:

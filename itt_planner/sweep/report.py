@@ -32,9 +32,9 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from itt_planner.errors import IttError
-from itt_planner.view.report import DPI, MPS_TO_KMH, table_cell, png_bytes
 from itt_planner.sweep.solve import CONVERGED
 from itt_planner.sweep.store import ResultStore
+from itt_planner.view.report import DPI, MPS_TO_KMH, png_bytes, table_cell
 
 #: The inputs that identify a case apart from its labels (course, rider).
 _AXES = ("course", "rider", "model", "wind_speed_mps", "wind_from_rad", "mu", "wprime_model",
@@ -101,7 +101,7 @@ def _wind_figure(rows: list[dict[str, Any]], course: str) -> Figure | None:
     model = "3d" if any(r["model"] == "3d" for r in sel) else sel[0]["model"]
     dry = max(r["mu"] for r in sel)
     equip = _reference_equipment(sel)
-    wprime = sorted({r["wprime_model"] for r in sel})[0]
+    wprime = min({r["wprime_model"] for r in sel})
     sel = [r for r in sel if r["model"] == model and r["mu"] == dry and r["equipment"] == equip
            and r["wprime_model"] == wprime]
     speeds = sorted({r["wind_speed_mps"] for r in sel})
@@ -208,7 +208,8 @@ def render_html(all_rows: list[dict[str, Any]]) -> tuple[str, int]:
     with mpl.rc_context({"figure.constrained_layout.use": True}):
         images = [png_bytes(fig, DPI) for fig in (_figures(rows) if rows else [])]
     table = "".join(f"<tr><th>{html.escape(k.replace('_', ' '))}</th>"
-                    f"<td>{html.escape(table_cell(v))}</td></tr>" for k, v in summary(all_rows).items())
+                    f"<td>{html.escape(table_cell(v))}</td></tr>"
+                    for k, v in summary(all_rows).items())
     figures = "".join(f'<p><img alt="figure {i}" src="data:image/png;base64,'
                       f'{base64.b64encode(png).decode()}"></p>' for i, png in enumerate(images))
     title = html.escape(f"itt-planner sweep: {summary(all_rows)['sweep']}")

@@ -112,7 +112,7 @@ def _dispatch(spec: SweepSpec, todo: list[Case], courses: dict[str, Any], n_work
     # Restart a worker that dies (max_restarts) but never re-run its case by itself
     # (max_task_retries=0): a case that kills its worker would kill it again.
     actor_cls = ray.remote(num_cpus=1, max_restarts=-1, max_task_retries=0)(CaseSolver)
-    actors = [actor_cls.remote() for _ in range(n_workers)]
+    actors: list[Any] = [actor_cls.remote() for _ in range(n_workers)]
     refs = {c.course_key: ray.put(courses[c.course]) for c in todo}
     queue = deque(todo)
     pending: dict[Any, tuple[Case, Any]] = {}
@@ -162,7 +162,8 @@ def _dispatch(spec: SweepSpec, todo: list[Case], courses: dict[str, Any], n_work
 def _row(ray: Any, ref: Any, case: Case) -> dict[str, Any]:
     """The row a worker returned, or a failed row if the worker died on this case."""
     try:
-        return ray.get(ref)
+        row: dict[str, Any] = ray.get(ref)
+        return row
     except (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError) as err:
         # Its other queued case fails with it (max_task_retries=0); --retry-failed re-runs both.
         reason = f"the worker died while this case was queued or solving ({type(err).__name__})"

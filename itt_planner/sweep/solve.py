@@ -22,8 +22,8 @@ from typing import Any
 from itt_planner.course.geometry import Course
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.plan import splits
-from itt_planner.view.report import average_power_w
 from itt_planner.sweep.cases import Case
+from itt_planner.view.report import average_power_w
 
 log = logging.getLogger(__name__)
 

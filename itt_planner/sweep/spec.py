@@ -37,9 +37,9 @@ from typing import Any
 import yaml
 
 from itt_planner.errors import IttError
-from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.model.rider import PRESETS, Rider
 from itt_planner.model.wprime import WPrimeModel
+from itt_planner.ocp.course_settings import OcpSettings
 
 MODELS = ("1d", "3d")
 _TOP_KEYS = {"name", "courses", "riders", "axes", "cases", "solver", "split_every_m"}
@@ -64,7 +64,7 @@ class Equipment:
 
     def apply(self, rider: Rider) -> Rider:
         """The rider on this equipment (raises `RiderError` if a field ends up invalid)."""
-        values = dict(self.set_fields)
+        values: dict[str, Any] = dict(self.set_fields)
         for field, delta in self.delta_fields:
             values[field] = values.get(field, getattr(rider, field)) + delta
         return dataclasses.replace(rider, **values) if values else rider
@@ -132,7 +132,7 @@ def load_spec(path: str | Path) -> SweepSpec:
         raise SweepSpecError(f"{path}: {err}") from None
 
 
-def parse_spec(raw: Any, *, base_dir: Path = Path("."), default_name: str = "sweep") -> SweepSpec:
+def parse_spec(raw: Any, *, base_dir: Path = Path(), default_name: str = "sweep") -> SweepSpec:
     """Validate an already parsed spec mapping; relative course/rider files from `base_dir`."""
     if not isinstance(raw, dict):
         raise SweepSpecError(f"expected a mapping, got {type(raw).__name__}")
@@ -267,7 +267,8 @@ def _case_grid(entry: Any, i: int, full: Grid, base_dir: Path) -> Grid:
             listed = set(getattr(full, field))
             if not set(chosen) <= listed:
                 raise SweepSpecError(f"{where}.{key}: {names} not among the spec's {field}")
-            base = dataclasses.replace(base, **{field: chosen})
+            change: dict[str, Any] = {field: chosen}
+            base = dataclasses.replace(base, **change)
     return _grid({k: v for k, v in entry.items() if k not in ("course", "rider")}, where, base)
 
 
@@ -276,14 +277,15 @@ def _equipment(raw: Any) -> tuple[Equipment, ...]:
         raise SweepSpecError(f"axes.equipment: expected a mapping name -> rider fields, "
                              f"got {raw!r}")
     out = []
-    for name, fields in raw.items():
+    for name, given in raw.items():
         where = f"axes.equipment.{name}"
-        fields = fields or {}
+        fields = given or {}
         if not isinstance(fields, dict):
             raise SweepSpecError(f"{where}: expected a mapping of rider fields, got {fields!r}")
-        set_fields, delta_fields = [], []
+        set_fields: list[tuple[str, float]] = []
+        delta_fields: list[tuple[str, float]] = []
         for key, value in fields.items():
-            field = key[len(_DELTA):] if key.startswith(_DELTA) else key
+            field = key.removeprefix(_DELTA)
             if field not in _RIDER_NUMBERS:
                 raise SweepSpecError(f"{where}: unknown rider field {key!r}; expected one of "
                                      f"{', '.join(_RIDER_NUMBERS)} (or delta_<field>)")

@@ -12,7 +12,6 @@ counted twice.
 
 from __future__ import annotations
 
-import os
 import time
 import uuid
 from pathlib import Path
@@ -76,7 +75,7 @@ class ResultStore:
             self.path.mkdir(parents=True, exist_ok=True)
             tmp = self.path / f".{name}.tmp"
             pq.write_table(table, tmp)
-            os.replace(tmp, self.path / name)
+            tmp.replace(self.path / name)
         except OSError as err:
             raise ResultStoreError(f"{self.path}: cannot write results ({err})") from None
         return self.path / name

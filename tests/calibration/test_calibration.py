@@ -4,10 +4,12 @@ refused with the reason, and the output rider loads with `--rider`."""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
+from support.calibration_ride import ALT_M, TRUTH, calibration_course, effort_plan, sensor_recording
 
 from itt_planner.calibration import (
     AeroSettings,
@@ -21,83 +23,26 @@ from itt_planner.calibration import (
 )
 from itt_planner.calibration.calibrate import load_rides
 from itt_planner.calibration.ride_data import air_density_kgpm3
-from itt_planner.course.builder import build_course
+from itt_planner.course.geometry import Course
 from itt_planner.course.track_files import Recording
-from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.model.conditions import Conditions
-from itt_planner.model.steady import steady_speed_mps
-from itt_planner.model.rider import Rider, load_rider
-from itt_planner.ocp.plan import PLAN_ARRAYS, Plan
+from itt_planner.model.rider import load_rider
 from itt_planner.sim import simulate_ride
 
-TRUTH = Rider(name="truth", mass_kg=75.0, drag_area_m2=0.30, crr=0.005, critical_power_w=300.0,
-              w_prime_j=20000.0)
-#: Maximal efforts of the synthetic ride (s): a CP test protocol, with recoveries between.
-EFFORTS_S = (120, 240, 480, 900)
-ALT_M = 200.0
-
-
-def _course():
-    """~35 km of flats, 5 % climbs and descents, and 20 m corners (synthetic)."""
-    segs: list[dict[str, object]] = []
-    for _ in range(9):
-        segs += [{"type": "straight", "length_m": 1500, "grade_pct": 0},
-                 {"type": "straight", "length_m": 1200, "grade_pct": 5},
-                 {"type": "clothoid", "length_m": 10, "radius_m": 20, "direction": "left"},
-                 {"type": "arc", "angle_deg": 90, "radius_m": 20, "direction": "left"},
-                 {"type": "clothoid", "length_m": 10},
-                 {"type": "straight", "length_m": 1200, "grade_pct": -5}]
-    spec = {"name": "calibration-synthetic", "segments": segs,
-            "origin": {"lat_deg": 45.0, "lon_deg": 10.0, "alt_m": ALT_M}}
-    return build_course(spec, source="tests/test_calibration.py")
-
-
-def _effort_plan(course, rider: Rider) -> Plan:
-    """A 'plan' the virtual rider follows by distance: 0.6 CP, and each effort of
-    `EFFORTS_S` at CP + W'/T over the distance a steady rider covers in T (W' spent)."""
-    s = course.s_m
-    grade = np.tan(course.beta_rad)
-    power = np.full(len(s), 0.6 * rider.critical_power_w)
-    start = 1500
-    for duration in EFFORTS_S:
-        p = rider.critical_power_w + rider.w_prime_j / duration
-        t, k = 0.0, start
-        while t < duration:
-            t += course.ds_m / steady_speed_mps(p, rider, grade=float(grade[k]))
-            k += 1
-        power[start:k] = p
-        start = k + 4000  # ~8 min at 0.6 CP: W' mostly back (Skiba tau ~ 450 s)
-    n = len(s)
-    arrays = {name: np.zeros(n) for name in PLAN_ARRAYS}
-    # A high advised speed: the rider brakes only for grip, as a rider without a plan.
-    arrays.update(s_m=s, power_w=power, v_mps=np.full(n, 25.0), t_s=s / 8.0)
-    return Plan(model="1d", solver_status="synthetic", iterations=0, solve_time_s=0.0, **arrays)
-
-
-def _recording(result, rng: np.random.Generator) -> Recording:
-    """The sensor samples as a 1 Hz recording; the altimeter adds 0.3 m of noise."""
-    gps = {round(x.stamp_s, 3): x for x in result.samples if isinstance(x, GpsFix)}
-    speed = {round(x.stamp_s, 3): x.speed_mps for x in result.samples if isinstance(x, WheelSpeed)}
-    power = {round(x.stamp_s, 3): x.power_w for x in result.samples if isinstance(x, PowerReading)}
-    t = sorted(gps)
-    return Recording(
-        path=Path("synthetic-ride.csv"), sha256="",
-        lat_deg=np.array([gps[k].lat_deg for k in t]), lon_deg=np.array([gps[k].lon_deg for k in t]),
-        ele_m=np.array([gps[k].alt_m for k in t]) + rng.normal(0.0, 0.3, len(t)),
-        time_s=np.array(t) + 1.7e9, speed_mps=np.array([speed.get(k, np.nan) for k in t]),
-        power_w=np.array([power.get(k, np.nan) for k in t]))
+#: The synthetic course and the virtual rider's recording on it.
+Synthetic = tuple[Course, Recording]
 
 
 @pytest.fixture(scope="module")
-def synthetic():
+def synthetic() -> Synthetic:
     """One ride of the virtual rider (3D model, sensor noise) with the truth `TRUTH`."""
-    course = _course()
+    course = calibration_course()
     # The air of the ride as the calibration will compute it (ISA at the altitude, 15 C).
     rho = float(air_density_kgpm3(ALT_M + 30.0, 15.0))
     # 0.2 s steps (5 RK4 substeps each) halve the ride's cost; sensors still fire at 1 Hz.
-    sim = simulate_ride(course, TRUTH, _effort_plan(course, TRUTH), policy="open_loop", seed=3,
+    sim = simulate_ride(course, TRUTH, effort_plan(course, TRUTH), policy="open_loop", seed=3,
                         conditions=Conditions(air_density_kgpm3=rho), dt_s=0.2)
-    return course, _recording(sim, np.random.default_rng(4))
+    return course, sensor_recording(sim, np.random.default_rng(4))
 
 
 def test_air_density_isa() -> None:
@@ -118,7 +63,7 @@ def test_cp_refuses_a_short_ride() -> None:
         fit_cp({60: 400.0, 120: 350.0, 180: 340.0}, "2p")
 
 
-def test_refusals_name_the_reason(synthetic) -> None:
+def test_refusals_name_the_reason(synthetic: Synthetic) -> None:
     _, rec = synthetic
     no_power = dataclasses.replace(rec, power_w=None)
     with pytest.raises(CalibrationError, match="no power"):
@@ -126,6 +71,7 @@ def test_refusals_name_the_reason(synthetic) -> None:
     flat = dataclasses.replace(rec, ele_m=np.full(len(rec), np.nan))
     with pytest.raises(CalibrationError, match="no elevation"):
         prepare_ride(flat)
+    assert rec.time_s is not None and rec.speed_mps is not None and rec.power_w is not None
     short = Recording(path=rec.path, sha256="", lat_deg=rec.lat_deg[:300],
                       lon_deg=rec.lon_deg[:300], ele_m=rec.ele_m[:300], time_s=rec.time_s[:300],
                       speed_mps=rec.speed_mps[:300], power_w=rec.power_w[:300])
@@ -133,7 +79,7 @@ def test_refusals_name_the_reason(synthetic) -> None:
         prepare_ride(short)
 
 
-def test_synthetic_truth_recovered(synthetic, tmp_path: Path) -> None:
+def test_synthetic_truth_recovered(synthetic: Synthetic, tmp_path: Path) -> None:
     """CdA and CP within 5 %, crr and W' within 15 % (issue 15), mass given."""
     course, rec = synthetic
     result = calibrate([rec], CalibrationOptions(mass_kg=TRUTH.mass_kg), courses=[course])
@@ -153,7 +99,7 @@ def test_synthetic_truth_recovered(synthetic, tmp_path: Path) -> None:
     assert rider.mass_kg == TRUTH.mass_kg
 
 
-def test_synthetic_mass_estimated(synthetic) -> None:
+def test_synthetic_mass_estimated(synthetic: Synthetic) -> None:
     """Without --mass-kg the climbs give the mass (crr at its prior) and CdA stays close."""
     course, rec = synthetic
     result = calibrate([rec], CalibrationOptions(), courses=[course])
@@ -162,7 +108,7 @@ def test_synthetic_mass_estimated(synthetic) -> None:
     assert result.aero.cda_m2 == pytest.approx(TRUTH.drag_area_m2, rel=0.1)
 
 
-def test_synthetic_corners_read(synthetic) -> None:
+def test_synthetic_corners_read(synthetic: Synthetic) -> None:
     """Every 20 m corner is found; the virtual rider takes them at the top of a climb,
     power-limited, so the lateral acceleration USED is below its grip (0.92 mu_y g)."""
     course, rec = synthetic
@@ -176,7 +122,7 @@ def test_synthetic_corners_read(synthetic) -> None:
 @pytest.mark.parametrize("name", ["rides/edge810_vector_stjohns_2013.fit",
                                   "rides/edge1000_ardennes_2019.fit",
                                   "rides/sauerland_2025.fit"])
-def test_real_ride_cda_plausible(data_file, name: str) -> None:
+def test_real_ride_cda_plausible(data_file: Callable[[str], Path], name: str) -> None:
     """Real rides: CdA in 0.18-0.45 m^2 with its uncertainty (mass estimated, wind fitted)."""
     fit = fit_aero(load_rides([data_file(name)], None), AeroSettings())
     assert 0.18 <= fit.cda_m2 <= 0.45
@@ -185,7 +131,7 @@ def test_real_ride_cda_plausible(data_file, name: str) -> None:
 
 
 @pytest.mark.slow
-def test_stop_and_go_ride_needs_the_mass(data_file) -> None:
+def test_stop_and_go_ride_needs_the_mass(data_file: Callable[[str], Path]) -> None:
     """The flat Shanghai ride cannot tell the mass; given one, it gives a CdA."""
     path = data_file("rides/elemnt_shanghai_2019_stopgo.fit")
     result = calibrate([path], CalibrationOptions())
@@ -194,7 +140,7 @@ def test_stop_and_go_ride_needs_the_mass(data_file) -> None:
     assert result.aero is not None and 0.18 <= result.aero.cda_m2 <= 0.45
 
 
-def test_virtual_ride_is_refused_as_simulated(data_file) -> None:
+def test_virtual_ride_is_refused_as_simulated(data_file: Callable[[str], Path]) -> None:
     """Zwift's speed obeys one power balance too exactly for a real road: refused."""
     path = data_file("rides/zwift_bologna_tt_virtual.tcx")
     result = calibrate([path], CalibrationOptions())

@@ -3,38 +3,46 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
+from support.calibration_ride import calibration_course
+from support.real_data import data_path
 from typer.testing import CliRunner
 
 from itt_planner.calibration import CalibrationError, CalibrationOptions, calibrate
 from itt_planner.calibration.validate import validate_ride
 from itt_planner.cli import app
+from itt_planner.course.geometry import COURSE_SUFFIX, Course
 from itt_planner.course.loader import load_course
+from itt_planner.model.rider import Rider
 
 ST_JOHNS = "rides/edge810_vector_stjohns_2013.fit"
 SAUERLAND = "rides/sauerland_2025.fit"
+#: The ride, its course, its calibrated rider and the course saved.
+StJohns = tuple[Path, Course, Rider, Path]
 
 
 @pytest.fixture(scope="module")
-def st_johns(request):
-    """The St John's ride (MIT, in tests/data/), its course and its calibrated rider."""
-    from real_data import data_path  # noqa: PLC0415  (the data_file fixture is function-scoped)
-
-    path = data_path(ST_JOHNS)
+def st_johns(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Course, Rider, Path]:
+    """The St John's ride (MIT, in tests/data/), its course, its calibrated rider and the
+    course saved (`--course` of the CLI tests: the ride's track is fitted once)."""
+    path = data_path(ST_JOHNS)  # not the data_file fixture: that one is function-scoped
     course = load_course(path)
-    return path, course, calibrate([path], CalibrationOptions(), courses=[course]).rider
+    saved = course.save(tmp_path_factory.mktemp("st_johns") / f"st_johns{COURSE_SUFFIX}")
+    return path, course, calibrate([path], CalibrationOptions(), courses=[course]).rider, saved
 
 
 @pytest.fixture(scope="module")
-def st_johns_validation(st_johns):
-    path, course, rider = st_johns
+def st_johns_validation(st_johns: StJohns) -> dict[str, Any]:
+    path, course, rider, _ = st_johns
     return validate_ride(path, course, rider, models=("1d",)).figures
 
 
-def test_same_ride_finish_within_1pct(st_johns_validation) -> None:
+def test_same_ride_finish_within_1pct(st_johns_validation: dict[str, Any]) -> None:
     """Calibrated on the same ride, the 1D replay of its power finishes within 1 % of the
     ride's moving time, in still air and in the day's fitted wind (issue 15)."""
     still, windy = st_johns_validation["physics"]
@@ -50,23 +58,23 @@ def test_same_ride_finish_within_1pct(st_johns_validation) -> None:
                    "km/h (3D) in the day's wind vs a raw-GPS noise floor of 0.4 km/h on St "
                    "John's; the 1D replay has no braking (descents +2.9 km/h bias), both one "
                    "steady wind")
-def test_same_ride_speed_mae_near_noise_floor(st_johns_validation) -> None:
+def test_same_ride_speed_mae_near_noise_floor(st_johns_validation: dict[str, Any]) -> None:
     windy = st_johns_validation["physics"][-1]
     assert windy["mae_kmh"] <= windy["noise_floor_kmh"] + 1.0, windy
 
 
-def test_wrong_course_is_refused(st_johns, data_file) -> None:
-    path, _, rider = st_johns
-    other = load_course(data_file(SAUERLAND))
+def test_wrong_course_is_refused(st_johns: StJohns) -> None:
+    """A ride in Newfoundland against a course in Italy (synthetic: no second fit)."""
+    path, _, rider, _ = st_johns
     with pytest.raises(CalibrationError, match="wrong --course"):
-        validate_ride(path, other, rider, models=("1d",))
+        validate_ride(path, calibration_course(), rider, models=("1d",))
 
 
 @pytest.mark.slow
-def test_same_ride_3d_replay(st_johns) -> None:
+def test_same_ride_3d_replay(st_johns: StJohns) -> None:
     """The 3D virtual rider pedalling the ride's power in the day's wind: within 1 % too,
     and closer to the ride's speed than the 1D model (it brakes for corners)."""
-    path, course, rider = st_johns
+    path, course, rider, _ = st_johns
     figures = validate_ride(path, course, rider).figures
     assert "physics_3d" not in figures, figures.get("physics_3d")
     one_d, three_d = figures["physics"][-2:]
@@ -74,18 +82,18 @@ def test_same_ride_3d_replay(st_johns) -> None:
     assert three_d["mae_kmh"] < one_d["mae_kmh"]
 
 
-def test_cli_calibrate_then_validate(st_johns, tmp_path: Path) -> None:
+def test_cli_calibrate_then_validate(st_johns: StJohns, tmp_path: Path) -> None:
     """The README's commands: ride -> rider YAML (+ report) -> validation JSON (+ report)."""
-    path, _, _ = st_johns
+    path, _, _, course = st_johns
     runner = CliRunner()
     rider = tmp_path / "me.yaml"
-    out = runner.invoke(app, ["calibrate", str(path), "-o", str(rider), "--report",
-                              str(tmp_path / "cal.html"), "--json"])
+    out = runner.invoke(app, ["calibrate", str(path), "--course", str(course), "-o", str(rider),
+                              "--report", str(tmp_path / "cal.html"), "--json"])
     assert out.exit_code == 0, out.output
     summary = json.loads(out.stdout)
     assert 0.18 <= summary["aero"]["cda_m2"] <= 0.45
     assert (tmp_path / "cal.html").read_text().count("data:image/png") == 3
-    out = runner.invoke(app, ["validate", str(path), "--course", str(path), "--rider", str(rider),
+    out = runner.invoke(app, ["validate", str(path), "--course", str(course), "--rider", str(rider),
                               "--model", "1d", "--report", str(tmp_path / "val.html"), "--json"])
     assert out.exit_code == 0, out.output
     figures = json.loads(out.stdout)
@@ -103,7 +111,7 @@ def test_cli_refusal_is_one_json_error(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_holdout_two_rides(data_file) -> None:
+def test_holdout_two_rides(data_file: Callable[[str], Path]) -> None:
     """Fit on one real ride, predict the other (out of sample), both ways. The corpus has no
     two rides of one rider (these are two people, 103 and 83 kg): the figures are the
     machinery's, no accuracy bar (St John's from the Sauerland rider: -10.7 %)."""

@@ -81,7 +81,7 @@ def test_save_load_round_trip(tmp_path: Path) -> None:
     ([{"type": "straight", "length_m": 10, "grade": 0.1, "grade_pct": 10}], "not both"),
     ([{"type": "straight", "length_m": 10, "colour": "red"}], "unknown field"),
 ])
-def test_invalid_segments_are_named(segments: list, problem: str) -> None:
+def test_invalid_segments_are_named(segments: list[dict[str, object]], problem: str) -> None:
     with pytest.raises(CourseError, match=problem):
         build_course({"segments": segments})
 
@@ -89,7 +89,7 @@ def test_invalid_segments_are_named(segments: list, problem: str) -> None:
 def test_bad_yaml_file_names_the_file(tmp_path: Path) -> None:
     path = tmp_path / "broken.yaml"
     path.write_text("segments: [ {type: straight, length_m: 10}\n")
-    with pytest.raises(CourseError, match="broken.yaml"):
+    with pytest.raises(CourseError, match=r"broken\.yaml"):
         build_course_file(path)
 
 

@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 from itt_planner.cli import app
 from itt_planner.course.elevation import ElevationOptions
 from itt_planner.course.fit import CourseOptions, WidthStretch, fit_course
-from itt_planner.course.geometry import GPS_ROAD_WIDTH_M
+from itt_planner.course.geometry import GPS_ROAD_WIDTH_M, Course
 from itt_planner.course.loader import load_course
 from itt_planner.course.track_files import read_recording
 from itt_planner.course.trim import Mark, TrimOptions, parse_mark
@@ -75,7 +75,7 @@ def ride(tmp_path: Path, *, lead_m: float = 0.0, device_error: bool = True,
     lat, lon, _ = pymap3d.enu2geodetic(x, y, 0 * x, LAT0, LON0, 0.0)
     path = tmp_path / name
     rows = [f"{a:.8f},{b:.8f},{c:.2f},{1.7e9 + k:.0f},{w:.2f}"
-            for a, b, c, k, w in zip(lat, lon, z, t, speed)]
+            for a, b, c, k, w in zip(lat, lon, z, t, speed, strict=True)]
     path.write_text("lat,lon,ele,time,speed\n" + "\n".join(rows) + "\n")
     keep = (s >= 0) & (s <= RACE_M)
     rlat, rlon, _ = pymap3d.enu2geodetic(xy[keep, 0][::20], xy[keep, 1][::20], 0.0, LAT0, LON0,
@@ -83,11 +83,11 @@ def ride(tmp_path: Path, *, lead_m: float = 0.0, device_error: bool = True,
     rz = 100.0 + 0.02 * s[keep][::20]
     route = tmp_path / "route.csv"
     route.write_text("lat,lon,ele\n" + "\n".join(
-        f"{a:.8f},{b:.8f},{c:.2f}" for a, b, c in zip(rlat, rlon, rz)) + "\n")
+        f"{a:.8f},{b:.8f},{c:.2f}" for a, b, c in zip(rlat, rlon, rz, strict=True)) + "\n")
     return path, route
 
 
-def big_turns(course) -> list[float]:
+def big_turns(course: Course) -> list[float]:
     return [math.degrees(c.angle_rad) for c in course.corners if math.degrees(c.angle_rad) > 60]
 
 
@@ -114,7 +114,7 @@ def test_overrides_by_distance_and_time(tmp_path: Path) -> None:
         start=parse_mark("0:30"), finish=parse_mark("400s"))))
     assert by_t.build["trim"]["start_elapsed_s"] == pytest.approx(30.0, abs=1.0)
     assert by_t.build["trim"]["finish_elapsed_s"] == pytest.approx(400.0, abs=1.0)
-    with pytest.raises(CourseError, match="race.csv: finish 90000 m is outside the ride"):
+    with pytest.raises(CourseError, match=r"race\.csv: finish 90000 m is outside the ride"):
         fit_course(rec, options=CourseOptions(trim=TrimOptions(finish=Mark(distance_m=9e4))))
     assert parse_mark("auto") is None and parse_mark("850") == Mark(distance_m=850.0)
     with pytest.raises(CourseError, match="expected a distance"):
@@ -139,7 +139,7 @@ def test_route_trims_lead_in_and_fixes_the_altitude(tmp_path: Path) -> None:
     mixed = fit_course(rec, options=CourseOptions(trim=TrimOptions(route=route)))
     assert mixed.build["elevation"]["source"] == "mix"
     grade = np.tan(mixed.beta_rad)
-    assert -0.01 < grade.min() and grade.max() < 0.05  # the true 2 % climb, no dip or wall
+    assert grade.min() > -0.01 and grade.max() < 0.05  # the true 2 % climb, no dip or wall
     assert mixed.build["elevation"]["suspect_grades"] == []
 
 
@@ -151,7 +151,8 @@ def test_road_width_default_option_and_stretches(tmp_path: Path) -> None:
     narrow = fit_course(rec, options=CourseOptions(
         road_width_m=7.0, widths=(WidthStretch(1000.0, 2000.0, 4.0),)))
     w = narrow.width_left_m + narrow.width_right_m
-    assert w[narrow.s_m < 990].min() == 7.0 and w[(narrow.s_m > 1000) & (narrow.s_m < 2000)].max() == 4.0
+    assert w[narrow.s_m < 990].min() == 7.0
+    assert w[(narrow.s_m > 1000) & (narrow.s_m < 2000)].max() == 4.0
     with pytest.raises(CourseError, match="road width"):
         fit_course(rec, options=CourseOptions(road_width_m=-1.0))
 
@@ -176,5 +177,5 @@ def test_gps_course_yaml_and_cli(tmp_path: Path) -> None:
     bad = runner.invoke(app, ["course", "info", "verona-like", "--start", "1km", "--json"])
     assert bad.exit_code == 1 and json.loads(bad.stdout)["type"] == "CourseError"
     spec.write_text(f"track: {path.name}\nwidth: 3\n")
-    with pytest.raises(CourseError, match="race.yaml: unknown field"):
+    with pytest.raises(CourseError, match=r"race\.yaml: unknown field"):
         load_course(spec)

@@ -56,7 +56,7 @@ def rosbags_messages(path: Path) -> tuple[dict[str, tuple[str, int]], dict[str, 
 
 def rerun_rows(path: Path, tmp_dir: Path) -> dict[str, list[dict[str, Any]]]:
     """Entity path -> rows (column name -> value) of Rerun's conversion of the log."""
-    from rerun.chunk import RrdReader  # noqa: PLC0415  (heavy import)
+    from rerun.chunk import RrdReader  # heavy: only this reader needs it
 
     rrd = tmp_dir / f"{path.stem}.rrd"
     subprocess.run([str(RERUN), "mcap", "convert", str(path), "-o", str(rrd)],

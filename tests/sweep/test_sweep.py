@@ -24,7 +24,9 @@ import sys
 import tempfile
 import time
 from collections import Counter
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import psutil
 import pytest
@@ -86,13 +88,13 @@ def _write_spec(folder: Path, name: str = "eve") -> Path:
 
 def _listening(pids: list[int]) -> list[tuple[int, str, str, int]]:
     """(pid, name, address, port) of every listening TCP / bound UDP socket of `pids`."""
-    out = []
+    out: list[tuple[int, str, str, int]] = []
     for pid in pids:
         try:
             proc = psutil.Process(pid)
-            for c in proc.net_connections(kind="inet"):
-                if c.status in (psutil.CONN_LISTEN, psutil.CONN_NONE) and c.laddr:
-                    out.append((pid, proc.name(), c.laddr.ip, c.laddr.port))
+            out.extend((pid, proc.name(), c.laddr.ip, c.laddr.port)
+                       for c in proc.net_connections(kind="inet")
+                       if c.status in (psutil.CONN_LISTEN, psutil.CONN_NONE) and c.laddr)
         except psutil.Error:
             continue
     return out
@@ -107,15 +109,15 @@ class _Interrupt(KeyboardInterrupt):
 
 
 @pytest.fixture(scope="module")
-def swept(tmp_path_factory: pytest.TempPathFactory) -> dict:
+def swept(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """The small sweep, interrupted after INTERRUPT_AFTER cases, then resumed."""
     folder = tmp_path_factory.mktemp("sweep")
     spec = load_spec(_write_spec(folder))
     out = folder / "results.parquet"
-    sockets: list = []
-    first_rows: list[dict] = []
+    sockets: list[tuple[int, str, str, int]] = []
+    first_rows: list[dict[str, Any]] = []
 
-    def stop_early(row: dict) -> None:
+    def stop_early(row: dict[str, Any]) -> None:
         first_rows.append(row)
         if len(first_rows) == 1:  # Ray is up: what does it listen on?
             sockets.extend(_listening([p.pid for p in psutil.Process().children(recursive=True)]))
@@ -130,7 +132,7 @@ def swept(tmp_path_factory: pytest.TempPathFactory) -> dict:
             "after_interrupt": recorded_after_interrupt, "resumed": resumed, "folder": folder}
 
 
-def test_sweep_resumes_without_solving_a_case_twice(swept: dict) -> None:
+def test_sweep_resumes_without_solving_a_case_twice(swept: dict[str, Any]) -> None:
     courses, riders = load_inputs(swept["spec"])
     keys = {c.key for c in expand(swept["spec"], courses, riders)}
     assert len(keys) == 2 * 3 * 2 * 2 + 1
@@ -147,7 +149,7 @@ def test_sweep_resumes_without_solving_a_case_twice(swept: dict) -> None:
     assert (again.already_done, again.solved) == (len(keys), 0)
 
 
-def test_sweep_matches_direct_plans(swept: dict) -> None:
+def test_sweep_matches_direct_plans(swept: dict[str, Any]) -> None:
     rows = [r for r in ResultStore(swept["out"]).read().to_pylist()
             if r["course"].endswith("short.yaml")]
     assert len(rows) == 24 and all(r["status"] == CONVERGED for r in rows), \
@@ -173,7 +175,7 @@ def test_sweep_matches_direct_plans(swept: dict) -> None:
     assert len({r["pid"] for r in rows}) >= 2  # two worker actors shared the cases
 
 
-def test_failing_case_is_recorded_and_the_sweep_goes_on(swept: dict) -> None:
+def test_failing_case_is_recorded_and_the_sweep_goes_on(swept: dict[str, Any]) -> None:
     rows = ResultStore(swept["out"]).read().to_pylist()
     failed = [r for r in rows if r["status"] == FAILED]
     assert len(failed) == 1
@@ -184,7 +186,7 @@ def test_failing_case_is_recorded_and_the_sweep_goes_on(swept: dict) -> None:
     assert sum(r["status"] == CONVERGED for r in rows) == 24
 
 
-def test_local_ray_listens_on_loopback_only(swept: dict) -> None:
+def test_local_ray_listens_on_loopback_only(swept: dict[str, Any]) -> None:
     sockets = swept["sockets"]
     names = {name for _, name, _, _ in sockets}
     assert {"gcs_server", "raylet"} <= names, names  # we did see Ray's servers
@@ -192,7 +194,7 @@ def test_local_ray_listens_on_loopback_only(swept: dict) -> None:
     assert not outside, outside
 
 
-def test_sweep_report(swept: dict, tmp_path: Path) -> None:
+def test_sweep_report(swept: dict[str, Any], tmp_path: Path) -> None:
     result = CliRunner().invoke(app, ["sweep-report", str(swept["out"]), "-o",
                                       str(tmp_path / "sweep.html"), "--json"])
     assert result.exit_code == 0, result.output
@@ -204,7 +206,7 @@ def test_sweep_report(swept: dict, tmp_path: Path) -> None:
     assert "narrower than the bike" in page  # the failed case is listed with its reason
 
 
-def test_sweep_cli_resumes_a_complete_sweep_and_rejects_a_bad_spec(swept: dict,
+def test_sweep_cli_resumes_a_complete_sweep_and_rejects_a_bad_spec(swept: dict[str, Any],
                                                                     tmp_path: Path) -> None:
     spec = swept["folder"] / "eve.sweep.yaml"
     result = CliRunner().invoke(app, ["sweep", str(spec), "-o", str(swept["out"]), "--json"])
@@ -241,7 +243,7 @@ def test_spec_errors_name_the_field(tmp_path: Path) -> None:
             parse_spec(raw, base_dir=tmp_path)
     spec = parse_spec({**base, "axes": {"wind_kmh": [0, 36], "wind_from_deg": [450]}})
     assert spec.grids[0].wind_speeds_mps == (0.0, 10.0)
-    assert spec.grids[0].wind_from_rad == (pytest.approx(math.pi / 2),)
+    assert spec.grids[0].wind_from_rad == pytest.approx((math.pi / 2,))
 
 
 def test_equipment_and_case_keys(tmp_path: Path) -> None:
@@ -341,7 +343,8 @@ def _node_ports(ports: list[int]) -> list[str]:
     return [f"{name}={port}" for name, port in zip(names, ports, strict=True)]
 
 
-def _wait_for(log: Path, text: str, proc: subprocess.Popen, timeout_s: float = 120.0) -> None:
+def _wait_for(log: Path, text: str, proc: subprocess.Popen[bytes],
+              timeout_s: float = 120.0) -> None:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if log.exists() and text in log.read_text(errors="replace"):
@@ -352,7 +355,7 @@ def _wait_for(log: Path, text: str, proc: subprocess.Popen, timeout_s: float = 1
     pytest.fail(f"no {text!r} in {log} after {timeout_s} s:\n{log.read_text()[-3000:]}")
 
 
-def _stop(procs: list[subprocess.Popen], temp_dir: str) -> None:
+def _stop(procs: list[subprocess.Popen[bytes]], temp_dir: str) -> None:
     """SIGTERM the process groups we started (`ray start --block` drains its node), then
     SIGKILL whatever of them or of our Ray temp dir is left. Never `ray stop`: it stops
     every Ray process of the user on the machine, not just ours."""
@@ -374,7 +377,7 @@ def _stop(procs: list[subprocess.Popen], temp_dir: str) -> None:
 
 
 @pytest.fixture
-def two_nodes(tmp_path: Path) -> dict:
+def two_nodes(tmp_path: Path) -> Iterator[dict[str, Any]]:
     """A head and a second node started with `ray start`, every socket on 127.0.0.1."""
     temp_dir = tempfile.mkdtemp(prefix="ittray", dir="/tmp")  # short: Ray's unix socket paths
     gcs_port, client_port, autoscaler_port, dashboard_port, *ports = _free_ports(16)
@@ -403,7 +406,7 @@ def two_nodes(tmp_path: Path) -> dict:
 
 
 @pytest.mark.slow
-def test_sweep_on_two_ray_nodes(two_nodes: dict, tmp_path: Path) -> None:
+def test_sweep_on_two_ray_nodes(two_nodes: dict[str, Any], tmp_path: Path) -> None:
     (tmp_path / "short.yaml").write_text(yaml.safe_dump(SHORT))
     (tmp_path / "two.sweep.yaml").write_text(yaml.safe_dump({
         "name": "two-nodes", "courses": ["short.yaml"], "riders": ["typical", "climber"],
@@ -412,7 +415,8 @@ def test_sweep_on_two_ray_nodes(two_nodes: dict, tmp_path: Path) -> None:
     cli = Path(sys.executable).with_name("itt-planner")
     done = subprocess.run([str(cli), "sweep", str(tmp_path / "two.sweep.yaml"), "-o", str(out),
                            "--address", two_nodes["address"], "--workers", "2", "--json"],
-                          env=two_nodes["env"], capture_output=True, text=True, timeout=600)
+                          env=two_nodes["env"], capture_output=True, text=True, timeout=600,
+                          check=False)
     assert done.returncode == 0, done.stderr[-3000:]
     summary = json.loads(done.stdout)
     assert summary["solved"] == 12 and summary["counts"]["converged"] == 12
