@@ -36,8 +36,8 @@ sys.path.insert(0, str(ROOT / "tests"))  # the test ride of the ROS tests (ros_s
 from ros_support import RIDE_T0_S, RIDER, Proc, Ride, cli, make_ride
 
 from bench.bench_ros_echo import echo_round_trips_ms
-from itt_msgs_py import deserialize, serialize, topics
-from itt_msgs_py.convert import from_time, sample_to_msg
+from itt_msgs_py import deserialize, registry, serialize, topics
+from itt_msgs_py.convert import from_time
 from itt_msgs_py.dds_env import localhost_env
 from itt_planner.logs.ridelog import read_ride_log
 from itt_planner_ros.ros_types import edge_node, message_class, qos_profile
@@ -61,7 +61,7 @@ def node_latency_ms(ride: Ride, folder: Path, seconds: float, env: dict[str, str
         with edge_node("bench_node") as bench:
             pubs = {t.key: bench.create_publisher(message_class(t.msgtype), t.name(),
                                                   qos_profile(t.qos))
-                    for t in topics.INPUT_TOPICS}
+                    for t in registry.INPUT_TOPICS}
             bench.create_subscription(
                 message_class(topics.ADVICE.msgtype), topics.ADVICE.name(),
                 lambda data: arrivals.append((time.perf_counter(), data)),
@@ -80,9 +80,9 @@ def node_latency_ms(ride: Ride, folder: Path, seconds: float, env: dict[str, str
                 if stamp - RIDE_T0_S > seconds:
                     break
                 time.sleep(max(0.0, start + (stamp - RIDE_T0_S) - time.perf_counter()))
-                topic, msg = sample_to_msg(sample)
+                topic, msg = registry.sample_to_msg(sample)  # type: ignore[arg-type]
                 pubs[topic.key].publish(serialize(msg))
-                if topic is topics.GPS_FIX:
+                if topic is registry.GPS_FIX:
                     sent[round(stamp, 3)] = time.perf_counter()
             time.sleep(2.0)
             executor.shutdown()

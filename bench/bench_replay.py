@@ -34,7 +34,7 @@ from itt_planner.course.loader import load_course  # noqa: E402
 from itt_planner.ocp.course_settings import OcpSettings  # noqa: E402
 from itt_planner.ocp.cache import load_or_solve  # noqa: E402
 from itt_planner.session.replay import replay_ride  # noqa: E402
-from itt_planner.session.ride_session import SessionConfig  # noqa: E402
+from itt_planner.session.config import SessionConfig  # noqa: E402
 from itt_planner.logs.ridelog import RideLogReader  # noqa: E402
 from itt_planner.model.rider import PRESETS  # noqa: E402
 

@@ -1,30 +1,35 @@
 """ROS 2 messages of itt-planner without a ROS install.
 
-Topic names and QoS (`topics`), the rosbags typestore with the custom `itt_msgs` types
-read from the ROS interface package's `.msg` files (`definitions`), the CDR codec
-(`codec`) and conversions to and from the core's types (`convert`).
+Topic names and QoS (`topics`), the sample registry of the input topics with their core
+sample types and converters (`registry`), the rosbags typestore with the custom
+`itt_msgs` types read from the ROS interface package's `.msg` files (`definitions`), the
+CDR codec (`codec`) and conversions of the core's outputs (`convert`).
 """
 
 from __future__ import annotations
 
 from itt_msgs_py.codec import deserialize, serialize
 from itt_msgs_py.definitions import msgdef, typestore
+from itt_msgs_py.registry import (
+    GPS_FIX,
+    INPUT_TOPICS,
+    POWER,
+    SAMPLE_TOPICS,
+    SPEED,
+    TOPICS,
+    SampleTopic,
+    topics_by_name,
+)
 from itt_msgs_py.topics import (
     ADVICE,
     DEFAULT_NAMESPACE,
     DIAGNOSTICS,
-    GPS_FIX,
-    INPUT_TOPICS,
-    POWER,
     RELIABLE_QOS,
     SENSOR_QOS,
-    SPEED,
     TARGET_LINE,
     TARGET_POWER,
-    TOPICS,
     QoS,
     Topic,
-    topics_by_name,
 )
 
 __all__ = [
@@ -35,12 +40,14 @@ __all__ = [
     "INPUT_TOPICS",
     "POWER",
     "RELIABLE_QOS",
+    "SAMPLE_TOPICS",
     "SENSOR_QOS",
     "SPEED",
     "TARGET_LINE",
     "TARGET_POWER",
     "TOPICS",
     "QoS",
+    "SampleTopic",
     "Topic",
     "deserialize",
     "msgdef",

@@ -1,4 +1,6 @@
-"""Conversions between the core's types and ROS 2 message objects (rosbags classes).
+"""Conversions between the core's outputs and ROS 2 message objects (rosbags classes).
+
+The input samples' converters are in `registry`, one entry per input topic.
 
 Stamps: the core uses float seconds on the ride clock, ROS `builtin_interfaces/Time`
 (sec, nanosec); the split keeps nanosecond resolution for POSIX times, which a single
@@ -15,17 +17,11 @@ import numpy as np
 from itt_msgs_py import topics
 from itt_msgs_py.definitions import typestore
 from itt_planner.live.advice import Advice, Cue, Diagnostic, Level
-from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
 from itt_planner.model.state import RiderState
 
 _T = typestore.types
 Time = _T["builtin_interfaces/msg/Time"]
 Header = _T["std_msgs/msg/Header"]
-NavSatFix = _T["sensor_msgs/msg/NavSatFix"]
-NavSatStatus = _T["sensor_msgs/msg/NavSatStatus"]
-TwistStamped = _T["geometry_msgs/msg/TwistStamped"]
-Twist = _T["geometry_msgs/msg/Twist"]
-Vector3 = _T["geometry_msgs/msg/Vector3"]
 Path = _T["nav_msgs/msg/Path"]
 PoseStamped = _T["geometry_msgs/msg/PoseStamped"]
 Pose = _T["geometry_msgs/msg/Pose"]
@@ -34,7 +30,6 @@ Quaternion = _T["geometry_msgs/msg/Quaternion"]
 DiagnosticArray = _T["diagnostic_msgs/msg/DiagnosticArray"]
 DiagnosticStatus = _T["diagnostic_msgs/msg/DiagnosticStatus"]
 KeyValue = _T["diagnostic_msgs/msg/KeyValue"]
-PowerStamped = _T["itt_msgs/msg/PowerStamped"]
 TargetPower = _T["itt_msgs/msg/TargetPower"]
 RiderStateMsg = _T["itt_msgs/msg/RiderState"]
 AdviceMsg = _T["itt_msgs/msg/Advice"]
@@ -49,7 +44,7 @@ HARDWARE_ID = "itt_planner"
 def stamp_ns(stamp_s: float) -> int:
     """Nanoseconds of a float stamp, split as `Time` does (exact for whole seconds)."""
     t = to_time(stamp_s)
-    return t.sec * 1_000_000_000 + t.nanosec
+    return int(t.sec * 1_000_000_000 + t.nanosec)
 
 
 def to_time(stamp_s: float) -> Any:
@@ -63,79 +58,12 @@ def to_time(stamp_s: float) -> Any:
 
 def from_time(time: Any) -> float:
     """Float seconds of a `builtin_interfaces/Time`."""
-    return time.sec + time.nanosec * 1e-9
+    return float(time.sec + time.nanosec * 1e-9)
 
 
 def header(stamp_s: float, frame_id: str) -> Any:
     """`std_msgs/Header` with the stamp and frame."""
     return Header(stamp=to_time(stamp_s), frame_id=frame_id)
-
-
-# --- inputs ----------------------------------------------------------------------------
-
-def gps_fix_to_msg(fix: GpsFix) -> Any:
-    """`sensor_msgs/NavSatFix`; a known `std_m` becomes an approximated diagonal covariance."""
-    known = math.isfinite(fix.std_m)
-    var = fix.std_m**2 if known else 0.0
-    # Vertical GNSS error is typically about 1.5x the horizontal one.
-    cov = np.array([var, 0, 0, 0, var, 0, 0, 0, (1.5**2) * var], dtype=np.float64)
-    return NavSatFix(
-        header=header(fix.stamp_s, GPS_FRAME),
-        status=NavSatStatus(status=NavSatStatus.STATUS_FIX, service=NavSatStatus.SERVICE_GPS),
-        latitude=fix.lat_deg, longitude=fix.lon_deg, altitude=fix.alt_m,
-        position_covariance=cov,
-        position_covariance_type=(NavSatFix.COVARIANCE_TYPE_APPROXIMATED if known
-                                  else NavSatFix.COVARIANCE_TYPE_UNKNOWN),
-    )
-
-
-def msg_to_gps_fix(msg: Any) -> GpsFix:
-    """`GpsFix` of a `NavSatFix`; `std_m` is NaN when the covariance is unknown."""
-    known = msg.position_covariance_type != NavSatFix.COVARIANCE_TYPE_UNKNOWN
-    std = math.sqrt(0.5 * (msg.position_covariance[0] + msg.position_covariance[4]))
-    return GpsFix(stamp_s=from_time(msg.header.stamp), lat_deg=msg.latitude,
-                  lon_deg=msg.longitude, alt_m=msg.altitude, std_m=std if known else math.nan)
-
-
-def wheel_speed_to_msg(sample: WheelSpeed) -> Any:
-    """`geometry_msgs/TwistStamped` with the wheel speed in `twist.linear.x` (m/s)."""
-    zero = Vector3(x=0.0, y=0.0, z=0.0)
-    return TwistStamped(
-        header=header(sample.stamp_s, BASE_FRAME),
-        twist=Twist(linear=Vector3(x=sample.speed_mps, y=0.0, z=0.0), angular=zero),
-    )
-
-
-def msg_to_wheel_speed(msg: Any) -> WheelSpeed:
-    """`WheelSpeed` of a `TwistStamped`."""
-    return WheelSpeed(stamp_s=from_time(msg.header.stamp), speed_mps=msg.twist.linear.x)
-
-
-def power_reading_to_msg(sample: PowerReading) -> Any:
-    """`itt_msgs/PowerStamped`."""
-    return PowerStamped(header=header(sample.stamp_s, BASE_FRAME), power_w=sample.power_w,
-                        cadence_rpm=sample.cadence_rpm)
-
-
-def msg_to_power_reading(msg: Any) -> PowerReading:
-    """`PowerReading` of a `PowerStamped`."""
-    return PowerReading(stamp_s=from_time(msg.header.stamp), power_w=msg.power_w,
-                        cadence_rpm=msg.cadence_rpm)
-
-
-def sample_to_msg(sample: Sample) -> tuple[topics.Topic, Any]:
-    """The input topic of a core sample and its message.
-
-    Raises:
-        TypeError: not a `GpsFix`, `WheelSpeed` or `PowerReading`.
-    """
-    if isinstance(sample, GpsFix):
-        return topics.GPS_FIX, gps_fix_to_msg(sample)
-    if isinstance(sample, WheelSpeed):
-        return topics.SPEED, wheel_speed_to_msg(sample)
-    if isinstance(sample, PowerReading):
-        return topics.POWER, power_reading_to_msg(sample)
-    raise TypeError(f"not a core sample: {type(sample).__name__}")
 
 
 # --- outputs ---------------------------------------------------------------------------
@@ -213,7 +141,8 @@ def line_yaw_rad(x_m: np.ndarray, y_m: np.ndarray, fallback_rad: float) -> np.nd
     """Heading of a polyline at each point (ENU, rad), `fallback_rad` for a single point."""
     if len(x_m) < 2:
         return np.full(len(x_m), fallback_rad)
-    return np.arctan2(np.gradient(y_m), np.gradient(x_m))
+    yaw: np.ndarray = np.arctan2(np.gradient(y_m), np.gradient(x_m))
+    return yaw
 
 
 def target_line_msg(advice: Advice) -> Any:
@@ -257,18 +186,16 @@ def msg_to_diagnostics(msg: Any) -> list[Diagnostic]:
     ]
 
 
-#: Core value of a message, per message type; types without a core twin stay messages.
+#: Core value of an output message, per message type; types without a core twin stay
+#: messages. (Inputs: `registry.to_core`.)
 _TO_CORE = {
-    topics.GPS_FIX.msgtype: msg_to_gps_fix,
-    topics.SPEED.msgtype: msg_to_wheel_speed,
-    topics.POWER.msgtype: msg_to_power_reading,
     topics.ADVICE.msgtype: msg_to_advice,
     topics.DIAGNOSTICS.msgtype: msg_to_diagnostics,
 }
 
 
-def msg_to_core(msg: Any) -> object:
-    """The core object of a message (`GpsFix`, ..., `Advice`, list of `Diagnostic`), or
-    the message itself for types the core has no twin of (`TargetPower`, `Path`)."""
+def output_to_core(msg: Any) -> object:
+    """The core object of an output message (`Advice`, list of `Diagnostic`), or the
+    message itself for types the core has no twin of (`TargetPower`, `Path`)."""
     convert = _TO_CORE.get(type(msg).__msgtype__)
     return msg if convert is None else convert(msg)

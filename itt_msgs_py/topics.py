@@ -1,6 +1,8 @@
-"""Topic names, message types and QoS of the itt-planner ROS 2 interface.
+"""Topic names, message types and QoS of the itt-planner ROS 2 interface: the outputs here.
 
-The one table of what flows where (architecture.md, "Topics"). Names are relative to a
+What flows where (architecture.md, "Topics"): the input topics are the sample registry's
+entries (`registry`, with their sample types and converters), the outputs are defined
+here, and `registry.TOPICS` lists both. Names are relative to a
 namespace (default `/itt`, so `gps/fix` is `/itt/gps/fix`); `/diagnostics` is absolute,
 as ROS tools expect it there. QoS is plain data here; the DDS layer and the rclpy node
 map it onto their own profile types.
@@ -79,18 +81,14 @@ class Topic:
         return f"{normalize_namespace(namespace)}/{self.key}"
 
 
-GPS_FIX = Topic("gps/fix", "sensor_msgs/msg/NavSatFix", SENSOR_QOS, Direction.IN)
-SPEED = Topic("speed", "geometry_msgs/msg/TwistStamped", SENSOR_QOS, Direction.IN)
-POWER = Topic("power", "itt_msgs/msg/PowerStamped", SENSOR_QOS, Direction.IN)
 TARGET_POWER = Topic("target_power", "itt_msgs/msg/TargetPower", RELIABLE_QOS, Direction.OUT)
 TARGET_LINE = Topic("target_line", "nav_msgs/msg/Path", RELIABLE_QOS, Direction.OUT)
 ADVICE = Topic("advice", "itt_msgs/msg/Advice", RELIABLE_QOS, Direction.OUT)
 DIAGNOSTICS = Topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", RELIABLE_QOS,
                     Direction.OUT)
 
-TOPICS: tuple[Topic, ...] = (GPS_FIX, SPEED, POWER, TARGET_POWER, TARGET_LINE, ADVICE,
-                             DIAGNOSTICS)
-INPUT_TOPICS: tuple[Topic, ...] = tuple(t for t in TOPICS if t.direction is Direction.IN)
+#: What the pacing node publishes (its inputs are the sample registry's, `registry`).
+OUTPUT_TOPICS: tuple[Topic, ...] = (TARGET_POWER, TARGET_LINE, ADVICE, DIAGNOSTICS)
 
 
 def normalize_namespace(namespace: str) -> str:
@@ -107,7 +105,3 @@ def normalize_namespace(namespace: str) -> str:
             raise ValueError(f"invalid ROS namespace {namespace!r}: bad token {part!r}")
     return "".join(f"/{p}" for p in parts)
 
-
-def topics_by_name(namespace: str = DEFAULT_NAMESPACE) -> dict[str, Topic]:
-    """Map each fully qualified topic name in `namespace` to its `Topic`."""
-    return {t.name(namespace): t for t in TOPICS}

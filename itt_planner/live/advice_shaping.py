@@ -29,6 +29,7 @@ change that explains it, or none.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -82,14 +83,14 @@ def climb_starts(course: Course, settings: ShapingSettings = ShapingSettings()) 
     st = settings
     s = course.s_m
     ds = float(course.ds_m)
-    k = max(int(round(st.climb_window_m / ds)), 1)
+    k = max(round(st.climb_window_m / ds), 1)
     grade = np.tan(course.beta_rad)
     ahead = np.convolve(np.pad(grade, (0, k), mode="edge"), np.ones(k) / k, mode="valid")[:len(s)]
     steep = ahead >= st.climb_grade
     rises = np.flatnonzero(steep[1:] & ~steep[:-1]) + 1
     if len(s) and steep[0]:
         rises = np.concatenate([[0], rises])
-    run = max(int(round(st.climb_min_m / ds)), 1)
+    run = max(round(st.climb_min_m / ds), 1)
     return np.array([s[i] for i in rises if steep[i:i + run].all()], dtype=float)
 
 
@@ -158,7 +159,8 @@ class AdviceShaper:
             return Cue.BRAKE
         if mean_w < st.coast_fraction * cp_w * (2.0 if was in _STOPPED else 1.0):
             return Cue.COAST
-        near = np.abs(self._climbs - s_m) <= st.climb_cue_m if len(self._climbs) else []
+        near: np.ndarray | list[bool] = (np.abs(self._climbs - s_m) <= st.climb_cue_m
+                                         if len(self._climbs) else [])
         return Cue.CLIMB if np.any(near) else Cue.PEDAL
 
     def _next_corner(self, s_m: float, horizon_s_m: np.ndarray,
@@ -216,7 +218,7 @@ def advice_steps(advice: Sequence[Advice], limit_w: float = STEP_LIMIT_W) -> lis
     """Every step over `limit_w` between consecutive advices (in stamp order), each with
     its reason (`step_reason`; "" when no cue explains it)."""
     out = []
-    for a, b in zip(advice[:-1], advice[1:]):
+    for a, b in itertools.pairwise(advice):
         if abs(b.target_power_w - a.target_power_w) > limit_w:
             out.append(Step(b.stamp_s, b.state.s_m, a.target_power_w, b.target_power_w,
                             step_reason(Cue(a.cue), Cue(b.cue))))
@@ -243,7 +245,7 @@ def advice_stats(advice: Sequence[Advice], limit_w: float = STEP_LIMIT_W) -> dic
         "fallback_fraction": (sum(bool(a.fallback) for a in advice) / len(advice)
                               if advice else 0.0),
         "cues": cues,
-        "cp_changes": sum(1 for x, y in zip(cp[:-1], cp[1:]) if x != y and math.isfinite(x)),
+        "cp_changes": sum(1 for x, y in itertools.pairwise(cp) if x != y and math.isfinite(x)),
         "plan_versions": len({a.plan_version for a in advice}),
         "min_w_prime_now_j": min((a.w_prime_now_j for a in advice), default=math.nan),
     }

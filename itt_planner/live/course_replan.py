@@ -32,7 +32,7 @@ import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from itt_planner.model.conditions import Conditions
 from itt_planner.course.geometry import Course
@@ -128,8 +128,8 @@ class CourseReplanner:
         self._pending = None
         return future.result()
 
-    def _solve_in_worker(self, job: tuple) -> Plan:
-        """`solve_plan` on `job` in a fresh Python process (this module's `__main__`).
+    def _solve_in_worker(self, job: tuple[Any, ...]) -> Plan:
+        """`solve_plan` on `job` in a fresh Python process (`_worker_main`).
 
         Why a process: IPOPT's linear solver MUMPS is not thread-safe (Ipopt >= 3.14
         serialises its calls across threads, which would stall the horizon's solves
@@ -139,14 +139,15 @@ class CourseReplanner:
         a process with threads (ROS executors, the engine's inputs) can deadlock. The
         job and the plan travel pickled over the worker's stdin and stdout.
         """
-        worker = subprocess.Popen([sys.executable, "-m", __name__, str(os.getpid())],
+        worker = subprocess.Popen([sys.executable, "-c", _WORKER, str(os.getpid())],
                                   stdin=subprocess.PIPE, stdout=subprocess.PIPE)
         self._worker = worker
         out, _ = worker.communicate(pickle.dumps(job))
         if worker.returncode != 0:
             msg = f"the course re-solve worker exited with code {worker.returncode}"
             raise SolveError(msg, status="worker_failed")
-        return pickle.loads(out)
+        plan: Plan = pickle.loads(out)
+        return plan
 
     def close(self) -> None:
         """Stop now: a solve still running is abandoned (its worker killed)."""
@@ -155,6 +156,11 @@ class CourseReplanner:
             worker.kill()
         self._waiter.shutdown(wait=False, cancel_futures=True)
         self._pending = None
+
+
+#: The worker's program. Not `python -m` this module: the package imports it first, and
+#: runpy would run it a second time as `__main__` (with a warning on stderr).
+_WORKER = f"import sys; from {__name__} import _worker_main; _worker_main(int(sys.argv[1]))"
 
 
 def _watch_owner(owner_pid: int) -> None:
@@ -179,6 +185,3 @@ def _worker_main(owner_pid: int) -> None:
     with result:
         result.write(pickle.dumps(plan))
 
-
-if __name__ == "__main__":
-    _worker_main(int(sys.argv[1]))

@@ -29,7 +29,7 @@ CP is wrong the balance drifts, and what the rider does reveals it, in two ways:
   `up_margin` x W' (that headroom again, so that the next refit needs new evidence).
 
 Down, the new CP is the one at which the lowest balance over the whole power history is
-0 (`StateEstimator.fit_critical_power`): the highest CP whose balance empties. W' itself is kept (a
+0 (`WPrimeBalance.fit_critical_power`): the highest CP whose balance empties. W' itself is kept (a
 W' deficit is the likelier error over a time trial's 20-60 min; see the report).
 Every refit is a `Refit` record with its evidence, a WARN diagnostic and a counter.
 """
@@ -43,7 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from itt_planner.live.advice import Diagnostic, Level
-from itt_planner.live.estimate import StateEstimator
+from itt_planner.live.wprime_balance import WPrimeBalance
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
 
@@ -130,20 +130,21 @@ class Refit:
 
 
 class CpMonitor:
-    """Watches (advised, measured) power and revises the estimator's CP (module docstring).
+    """Watches (advised, measured) power and revises the CP in use (module docstring).
 
     Not thread-safe: the engine calls it with its lock held.
 
     Args:
         rider: the rider as first believed (W', the believed CP).
-        estimator: holds the W' balance and the power history (`fit_critical_power`).
+        balance: the engine's W' model: the CP in use, the balance and the power
+            history (`fit_critical_power`).
         settings: thresholds.
     """
 
-    def __init__(self, rider: Rider, estimator: StateEstimator,
+    def __init__(self, rider: Rider, balance: WPrimeBalance,
                  settings: CpMonitorSettings = CpMonitorSettings()) -> None:
         self.rider = rider
-        self.estimator = estimator
+        self.balance = balance
         self.settings = settings
         self.refits: list[Refit] = []
         #: (stamp, advised power, measured power) at every advice.
@@ -151,7 +152,8 @@ class CpMonitor:
 
     @property
     def cp_in_use_w(self) -> float:
-        return self.estimator.rider.critical_power_w
+        """The CP in use (the balance's)."""
+        return self.balance.cp_w
 
     def observe(self, stamp_s: float, state: RiderState, target_w: float) -> Refit | None:
         """Record what was advised (the target the rider was shown) and delivered; refit
@@ -166,14 +168,14 @@ class CpMonitor:
     def _check_up(self, stamp_s: float, state: RiderState) -> Refit | None:
         st = self.settings
         cp = self.cp_in_use_w
-        w_raw = self.estimator.w_prime_raw_j(stamp_s)
+        w_raw = self.balance.raw_j(stamp_s)
         if w_raw >= -st.up_margin * self.rider.w_prime_j:
             return None
-        new_cp = self.estimator.fit_critical_power(cp, st.up_factor * cp,
+        new_cp = self.balance.fit_critical_power(cp, st.up_factor * cp,
                                                    st.up_margin * self.rider.w_prime_j)
         if new_cp <= cp:
             return None
-        span = np.array([r for r in self._rows])
+        span = np.array(list(self._rows))
         return self._adopt(Refit(stamp_s, state.s_m, "up", cp, new_cp,
                                  float(span[:, 2].mean()), float(span[:, 1].mean()),
                                  float(span[-1, 0] - span[0, 0]), w_raw))
@@ -201,7 +203,7 @@ class CpMonitor:
                      mean_power, mean_target, followed_power, followed_target, cp)
             return None
         # An exhausted rider holds its CP: not below the power it holds.
-        new_cp = max(self.estimator.fit_critical_power(st.down_factor * cp, cp), mean_power)
+        new_cp = max(self.balance.fit_critical_power(st.down_factor * cp, cp), mean_power)
         if new_cp > cp * (1 - st.min_change):  # the balance explains it, or too small to tell
             log.info("cp_monitor: rider holds %.0f W against %.0f W advised; the power "
                      "history explains it at CP %.0f W: CP %.0f W kept", mean_power,
@@ -212,7 +214,7 @@ class CpMonitor:
                                  state.w_prime_j))
 
     def _adopt(self, refit: Refit) -> Refit:
-        self.estimator.use_critical_power(refit.cp_after_w)
+        self.balance.use_critical_power(refit.cp_after_w)
         self.refits.append(refit)
         self._rows.clear()
         log.warning("engine: %s", refit.message())

@@ -7,7 +7,7 @@ solver and of the inputs from the engine's counters.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from itt_planner.live.advice import Diagnostic, Level
@@ -20,7 +20,6 @@ CONVERGED = CONVERGED_STATUSES
 _SOLVER_COUNTERS = ("solves", "failures", "overruns", "exceptions", "fallbacks",
                     "unconverged_solves", "course_replans_asked", "course_replans",
                     "course_replan_failures")
-_TOPICS = ("gps", "speed", "power")
 
 
 @dataclass(frozen=True)
@@ -81,13 +80,13 @@ def solver_diagnostic(stamp_s: float, status: str, on_plan: bool, iterations: in
     return Diagnostic(stamp_s, "itt_planner/solver", level, msg, values)
 
 
-def input_diagnostics(stamp_s: float, last_input: Mapping[str, float], stale_after_s: float,
-                      rejects: Mapping[str, int], reported: Mapping[str, int]
-                      ) -> list[Diagnostic]:
-    """Freshness per input topic, and the inputs rejected since the last report
-    (`reported`: the reject counts then)."""
+def input_diagnostics(stamp_s: float, sensors: Iterable[str], last_input: Mapping[str, float],
+                      stale_after_s: float, rejects: Mapping[str, int],
+                      reported: Mapping[str, int]) -> list[Diagnostic]:
+    """Freshness per sensor (`sensors`: the estimator's hooks), and the inputs rejected
+    since the last report (`reported`: the reject counts then)."""
     out = []
-    for topic in _TOPICS:
+    for topic in sensors:
         seen = last_input.get(topic)
         if seen is None:
             out.append(Diagnostic(stamp_s, f"itt_planner/input/{topic}", Level.STALE,

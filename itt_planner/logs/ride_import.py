@@ -18,9 +18,9 @@ from typing import Any
 import numpy as np
 from pymap3d.haversine import anglesep
 
-from itt_msgs_py import DEFAULT_NAMESPACE, GPS_FIX, POWER, SPEED
+from itt_msgs_py import DEFAULT_NAMESPACE, INPUT_TOPICS
 from itt_planner.errors import CourseError, RideLogError
-from itt_planner.logs.ridelog import RideLogWriter, RideMetadata
+from itt_planner.logs.ridelog_writer import RideLogWriter, RideMetadata
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.course.track_files import Recording, read_recording
 
@@ -110,8 +110,7 @@ def import_ride(source: str | Path, output: str | Path, *, rider: str = "",
     with RideLogWriter(output, metadata=metadata, namespace=namespace) as writer:
         for i in order:
             _write_record(writer, rec, int(i))
-        counts = {t.name(namespace): writer.counts[t.name(namespace)]
-                  for t in (GPS_FIX, SPEED, POWER)}
+        counts = {t.name(namespace): writer.counts[t.name(namespace)] for t in INPUT_TOPICS}
 
     has_pos = np.isfinite(rec.lat_deg[order]) & np.isfinite(rec.lon_deg[order])
     power = rec.power_w[order] if rec.power_w is not None else np.zeros(0)

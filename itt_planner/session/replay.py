@@ -15,20 +15,19 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from tqdm import tqdm
 
-from itt_msgs_py import topics
-from itt_planner.live.advice_shaping import advice_stats
+from itt_msgs_py import registry, topics
 from itt_planner.errors import RideLogError
+from itt_planner.live.advice_shaping import advice_stats
 from itt_planner.logs.ridelog import SESSION_METADATA, RideLogReader, message_count
-from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.session.ride_session import RideSession, SessionConfig
-
-#: The output log's metadata record of the session (reports read it).
+from itt_planner.session.config import SessionConfig
+from itt_planner.session.ride_session import RideSession
 
 
 @dataclass(frozen=True)
@@ -127,54 +126,69 @@ def replay(log_path: str | Path, session: RideSession, *,
         RideLogError: the input cannot be opened at all, or the output cannot be written.
     """
     namespace = session.config.namespace
-    result = ReplayResult(output=session.writer.path if session.writer else None)
-    own_topics = {t.name(namespace) for t in topics.TOPICS
-                  if t.direction is topics.Direction.OUT}
-    replaced: dict[str, int] = {}
+    writer = session.sinks.writer
+    result = ReplayResult(output=writer.path if writer else None)
+    replaced: Counter[str] = Counter()
     try:
         reader = RideLogReader(log_path, namespace=namespace)
     except BaseException:
         session.close()
         raise
-    pacer = _Pacer(settings.speed)
     bar = tqdm(total=message_count(log_path), unit="msg", file=sys.stderr,
                disable=not progress, desc=Path(log_path).name)
     start = time.perf_counter()
-    first: float | None = None
-    last: float | None = None
     try:
         try:
-            for raw, value in reader.decoded():
-                bar.update()
-                if raw.topic in own_topics:  # an earlier replay's output: recomputed here
-                    replaced[raw.topic] = replaced.get(raw.topic, 0) + 1
-                    continue
-                stamp = raw.log_time_ns / 1e9  # correctly rounded: whole seconds stay whole
-                session.advance_to(stamp)  # the advice of earlier stamps goes out first
-                pacer.wait(stamp)
-                result.messages_in += 1
-                first = stamp if first is None else first
-                last = stamp if last is None else max(last, stamp)
-                if isinstance(value, GpsFix | WheelSpeed | PowerReading):
-                    session.on_sample(value, raw)
-                else:
-                    session.write_raw(raw)
+            _feed(reader, session, _Pacer(settings.speed), bar, result, replaced)
         except RideLogError as err:
             # Everything readable was replayed; finish the output and report the damage.
             result.errors.append(str(err))
         session.finish()
-        if session.writer is not None:
+        if writer is not None:
             for name, record in reader.metadata.items():
                 if name != SESSION_METADATA:  # an earlier replay's: the session writes its own
-                    session.writer.add_metadata(name, record)
+                    writer.add_metadata(name, record)
     finally:
         bar.close()
         session.close()
-    if session.writer is not None:
-        result.topics_out = dict(session.writer.counts)
     result.wall_time_s = time.perf_counter() - start
+    _report(result, session, reader, replaced)
+    return result
+
+
+def _feed(reader: RideLogReader, session: RideSession, pacer: _Pacer, bar: tqdm[Any],
+          result: ReplayResult, replaced: Counter[str]) -> None:
+    """Every message of the log into the session, in log order (samples to the engine,
+    the rest copied); the output topics of an earlier replay are dropped (`replaced`).
+
+    Raises:
+        RideLogError: after the last readable message, when the log is damaged.
+    """
+    own_topics = {t.name(session.config.namespace) for t in topics.OUTPUT_TOPICS}
+    first: float | None = None
+    for raw, value in reader.decoded():
+        bar.update()
+        if raw.topic in own_topics:  # an earlier replay's output: recomputed here
+            replaced[raw.topic] += 1
+            continue
+        stamp = raw.log_time_ns / 1e9  # correctly rounded: whole seconds stay whole
+        session.advance_to(stamp)  # the advice of earlier stamps goes out first
+        pacer.wait(stamp)
+        result.messages_in += 1
+        first = stamp if first is None else first
+        result.ride_duration_s = max(result.ride_duration_s, stamp - first)
+        if registry.is_sample(value):
+            session.on_sample(value, raw)
+        else:
+            session.write_raw(raw)
+
+
+def _report(result: ReplayResult, session: RideSession, reader: RideLogReader,
+            replaced: Counter[str]) -> None:
+    """The counts of a finished replay and its warnings, with what was not used."""
+    if session.sinks.writer is not None:
+        result.topics_out = dict(session.sinks.writer.counts)
     result.solve_times_s = list(session.engine.solve_times_s)
-    result.ride_duration_s = (last - first) if first is not None and last is not None else 0.0
     result.advice_out = session.advice_out
     result.fallbacks = session.fallbacks
     result.counts = session.counts()
@@ -187,7 +201,6 @@ def replay(log_path: str | Path, session: RideSession, *,
         if unexplained := result.advice_stats["unexplained_steps"]:
             result.warnings.append(f"{unexplained} target power steps over "
                                    f"{result.advice_stats['step_limit_w']:.0f} W without a cue")
-    return result
 
 
 def parse_speed(text: str) -> float | None:

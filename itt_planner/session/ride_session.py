@@ -1,15 +1,14 @@
-"""One pacing session: course, rider, plan and engine; samples in, advice out to sinks.
+"""One pacing session: the engine fed with samples, ticked on the stamp clock, its advice
+sent to sinks.
 
 Both edges drive this object, so a ROS 2 node and an embedded replay of the same log
 give the same advice and the same review: the replay (`replay.py`) only reads and paces
 a log, the node (`itt_planner_ros.pacing_node`) only converts ROS messages.
 
-- `SessionConfig` is everything that decides the advice (loaded once at the edge: CLI
-  options or ROS parameters).
-- `RideSession.open(config, ...)` loads the course, rider and full-course plan (from the
-  plan cache) and builds the engine; outputs are sinks: an MCAP ride log, a Rerun
-  recording, and a `publish` callback (the node's publishers).
-- `on_sample` feeds one sample (GPS, speed, power) to the engine and the sinks.
+- `RideSession.open(config, ...)` builds the engine (`config.build_engine`) and opens the
+  sinks (`sinks.Sinks`): an MCAP ride log, a Rerun recording, a `publish` callback (the
+  node's publishers).
+- `on_sample` feeds one sample of any registered type to the engine and the sinks.
 - `advance_to(stamp_s)` runs the session's timer on the stamp clock (a fixed grid, the
   same for a node and a replay); at each tick the engine decides whether a replan is
   due; diagnostics go out every `diagnostics_period_s` of stamp time.
@@ -23,123 +22,23 @@ import dataclasses
 import json
 import logging
 import math
-import os
-import threading
 from collections import Counter
-from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from itt_msgs_py import DEFAULT_NAMESPACE
 from itt_planner.live.advice import Advice, Diagnostic, Level
-from itt_planner.errors import SolveError
-from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
+from itt_planner.live.samples import Sample
+from itt_planner.session.config import SessionConfig, build_engine
+from itt_planner.session.sinks import Publish, Sinks
 
 if TYPE_CHECKING:
     from itt_planner.live.engine import PacingEngine
+    from itt_planner.logs.ridelog import RawRecord
+    from itt_planner.logs.ridelog_writer import RideLogWriter
     from itt_planner.ocp.plan import Plan
     from itt_planner.view.rerun_log import RideRecorder
-    from itt_planner.logs.ridelog import RawRecord, RideLogWriter
 
 log = logging.getLogger(__name__)
-
-#: The output log's metadata record of the session's settings and plan status (the name
-#: is the one reports have read since the embedded replay wrote it).
-#: IPOPT's own default for `max_wall_time`: no limit.
-NO_WALL_TIME_LIMIT_S = 1e20
-
-
-@dataclass(frozen=True)
-class SessionConfig:
-    """What decides the advice of a session (node parameters, replay options).
-
-    Attributes:
-        course: course spec for `load_course` (demo name, GPS file, `.course.npz`).
-        rider: rider preset name or YAML file.
-        model: full-course plan model, "3d" or "1d".
-        plan: a saved full-course plan (`Plan.save`); "" to take it from `plan_cache`.
-        plan_cache: directory of cached full-course plans (solved there when missing).
-        horizon_m: receding-horizon length.
-        replan_period_s: stamp time between two advices.
-        on_plan_band_j: W' deviation from the plan within which the advice is the plan
-            itself (`EngineSettings`); 0.0 replans every period.
-        course_replan_period_s: off the plan, the rest of the course is re-solved at most
-            this often (`CourseReplanSettings`); 0.0 never.
-        line_gate_m: the horizon plans from the advised line unless GPS puts the rider
-            further off it than this (`EngineSettings`).
-        diagnostics_period_s: stamp time between two diagnostics messages.
-        deterministic: no wall-clock values in advice and diagnostics and no wall-time
-            caps, so two runs over one log give byte-identical advice (replays); False
-            is the live behaviour (overruns judged by the wall clock).
-        namespace: ROS namespace of the pacing topics (MCAP topic names).
-    """
-
-    course: str = "verona-like"
-    rider: str = "paper"
-    model: str = "3d"
-    plan: str = ""
-    plan_cache: str = ".itt_cache"
-    horizon_m: float = 1000.0
-    replan_period_s: float = 1.0
-    on_plan_band_j: float = 2000.0
-    course_replan_period_s: float = 30.0
-    line_gate_m: float = 5.0
-    diagnostics_period_s: float = 1.0
-    deterministic: bool = False
-    namespace: str = DEFAULT_NAMESPACE
-
-
-def build_engine(config: SessionConfig) -> PacingEngine:
-    """Load the course, rider and full-course plan of `config` and build the engine.
-
-    Raises:
-        CourseError, RiderError, SolveError: the course, rider or plan is unusable.
-    """
-    # Heavy (CasADi): imported when a session is actually built.
-    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
-    from itt_planner.course.loader import load_course  # noqa: PLC0415
-    from itt_planner.live.course_replan import CourseReplanSettings  # noqa: PLC0415
-    from itt_planner.live.engine import EngineSettings, PacingEngine  # noqa: PLC0415
-    from itt_planner.ocp.horizon import HorizonPlanner  # noqa: PLC0415
-    from itt_planner.ocp.horizon_settings import HorizonSettings  # noqa: PLC0415
-    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
-    from itt_planner.ocp.plan import Plan  # noqa: PLC0415
-    from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
-    from itt_planner.model.rider import load_rider  # noqa: PLC0415
-    from itt_planner.ocp.solver import PlanStatus  # noqa: PLC0415
-
-    course = load_course(config.course)
-    rider = load_rider(config.rider)
-    conditions = Conditions()
-    if config.plan:
-        plan = Plan.load(config.plan)
-    else:
-        plan = load_or_solve(course, rider, conditions, OcpSettings(), config.model,
-                             cache_dir=Path(config.plan_cache))
-    if plan.status in (PlanStatus.FAILED, PlanStatus.INVALID):
-        # A capped plan is still a verified trajectory (advised, with a warning); a failed
-        # or invalid one is not a plan a rider should be given.
-        raise SolveError(f"the full-course plan of {config.course} for {config.rider} is "
-                         f"{plan.status} ({plan.solver_status}): not used",
-                         status=plan.solver_status)
-    horizon = HorizonSettings(horizon_m=config.horizon_m)
-    if config.deterministic:
-        # IPOPT's wall-time cap would make the result depend on the machine's load; the
-        # iteration cap stays the budget.
-        horizon = dataclasses.replace(horizon, max_wall_time_s=NO_WALL_TIME_LIMIT_S)
-    planner = HorizonPlanner(course, rider, plan, conditions=conditions, settings=horizon)
-    settings = EngineSettings(
-        replan_period_s=config.replan_period_s, horizon_m=config.horizon_m,
-        on_plan_band_j=config.on_plan_band_j, line_gate_m=config.line_gate_m,
-        deterministic=config.deterministic,
-        course_replan=CourseReplanSettings(period_s=config.course_replan_period_s))
-    return PacingEngine(course, rider, plan, conditions=conditions, planner=planner,
-                        settings=settings)
-
-
-#: What the node publishes: an advice, or a diagnostics batch with its stamp.
-Publish = Callable[[Advice | None, list[Diagnostic] | None, float], None]
 
 
 class RideSession:
@@ -165,17 +64,13 @@ class RideSession:
         self._ticks = 0
         self._last_stamp = -math.inf
         self.engine = engine
-        self.writer = writer
-        self.recorder = recorder
-        self.publish = publish
+        self.sinks = Sinks(writer, recorder, publish, engine.plan_version)
         #: Every advice, for `advice_stats` (a replay keeps them; a live node does not).
         self.advice: list[Advice] | None = [] if keep_advice else None
-        self._plan_version = engine.plan_version
         self.advice_out = 0
         self.fallbacks = 0
         #: Input messages that did not decode, per topic (counted, never fatal).
         self.malformed: Counter[str] = Counter()
-        self._io_lock = threading.Lock()  # the MCAP writer is not thread-safe
         self._last_diagnostics: float | None = None
         self._closed = False
 
@@ -193,7 +88,8 @@ class RideSession:
         """
         writer = recorder = engine = None
         if output_log:  # before the (slow) plan: a bad path fails at once
-            from itt_planner.logs.ridelog import SESSION_METADATA, RideLogWriter, RideMetadata  # noqa: PLC0415
+            from itt_planner.logs.ridelog import SESSION_METADATA  # noqa: PLC0415
+            from itt_planner.logs.ridelog_writer import RideLogWriter, RideMetadata  # noqa: PLC0415
 
             writer = RideLogWriter(output_log, namespace=config.namespace,
                                    metadata=RideMetadata(source="itt-planner session",
@@ -221,7 +117,7 @@ class RideSession:
 
     @property
     def plan(self) -> Plan:
-        """The full-course plan the session started from."""
+        """The full-course plan in force (the engine's)."""
         return self.engine.plan
 
     def describe(self) -> dict[str, str]:
@@ -236,25 +132,8 @@ class RideSession:
         `raw` is the sample's message as read from a log (copied byte for byte into the
         output log); without it the sample is encoded anew.
         """
-        engine, recorder = self.engine, self.recorder
-        if isinstance(sample, GpsFix):
-            engine.on_gps(sample)
-            if recorder is not None:
-                recorder.log_gps(sample, engine.state)
-        elif isinstance(sample, WheelSpeed):
-            engine.on_speed(sample)
-            if recorder is not None:
-                recorder.log_speed(sample)
-        elif isinstance(sample, PowerReading):
-            engine.on_power(sample)
-            if recorder is not None:
-                recorder.log_power(sample)
-        if self.writer is not None:
-            with self._io_lock:
-                if raw is not None:
-                    self.writer.write_raw(raw)
-                else:
-                    self.writer.write_sample(sample)
+        self.engine.on_sample(sample)
+        self.sinks.sample(sample, lambda: self.engine.estimate, raw)
 
     def on_malformed(self, topic: str, reason: str) -> None:
         """Count an input message that did not decode (reported in the diagnostics)."""
@@ -264,9 +143,7 @@ class RideSession:
 
     def write_raw(self, raw: RawRecord) -> None:
         """Copy a log message that is no input sample (e.g. /clock) to the output log."""
-        if self.writer is not None:
-            with self._io_lock:
-                self.writer.write_raw(raw)
+        self.sinks.raw(raw)
 
     # ---- the timer ------------------------------------------------------------------
     def advance_to(self, stamp_s: float) -> None:
@@ -275,10 +152,10 @@ class RideSession:
         The session's timer fires every `min(replan_period_s, diagnostics_period_s)` of
         stamp time on a grid of whole multiples of that period, from the first stamp it
         sees (a replay's first message, a node's first clock reading), so a node and a
-        replay of one log advise at the same stamps. The tick at T runs once the clock has moved past T: every input stamped
-        up to T is in before the engine plans. A gap in the stamps is ticked through,
-        unless it is longer than `max_catch_up_s` (a restarted player jumping ahead):
-        then the grid moves on to `stamp_s`.
+        replay of one log advise at the same stamps. The tick at T runs once the clock
+        has moved past T: every input stamped up to T is in before the engine plans. A
+        gap in the stamps is ticked through, unless it is longer than `max_catch_up_s` (a
+        restarted player jumping ahead): then the grid moves on to `stamp_s`.
         """
         if self._first_tick is None:
             # On whole multiples of the period: a node that starts late (its first clock
@@ -312,19 +189,9 @@ class RideSession:
             self.fallbacks += bool(advice.fallback)
             if self.advice is not None:
                 self.advice.append(advice)
-            if self.writer is not None:
-                with self._io_lock:
-                    self.writer.write_advice(advice)
-            if self.recorder is not None:
-                if advice.plan_version != self._plan_version:  # a re-solved plan adopted
-                    self._plan_version = advice.plan_version
-                    self.recorder.log_plan(self.engine.plan, advice.plan_version)
-                self.recorder.log_state(advice.state)
-                self.recorder.log_advice(advice)
-            if self.publish is not None:
-                self.publish(advice, None, stamp_s)
-        elif self.recorder is not None and (state := self.engine.state) is not None:
-            self.recorder.log_state(state)
+            self.sinks.advice(advice, self.engine.plan, stamp_s)
+        else:
+            self.sinks.state(lambda: self.engine.state)
         last = self._last_diagnostics
         period = self.config.diagnostics_period_s
         # A clock that jumps back (a restarted player) restarts the diagnostics period.
@@ -345,13 +212,7 @@ class RideSession:
 
     def emit_diagnostics(self, stamp_s: float, diagnostics: list[Diagnostic]) -> None:
         """Send a diagnostics batch to every sink."""
-        if self.writer is not None:
-            with self._io_lock:
-                self.writer.write_diagnostics(diagnostics, stamp_s)
-        if self.recorder is not None:
-            self.recorder.log_diagnostics(diagnostics)
-        if self.publish is not None:
-            self.publish(None, diagnostics, stamp_s)
+        self.sinks.diagnostics(diagnostics, stamp_s)
 
     # ---- reporting ------------------------------------------------------------------
     def warnings(self) -> list[str]:
@@ -393,7 +254,7 @@ class RideSession:
         tmp = path.with_name(path.name + ".tmp")
         tmp.write_text(json.dumps({"course": self.config.course,
                                    "engine": self.engine.snapshot()}), encoding="utf-8")
-        os.replace(tmp, path)
+        tmp.replace(path)
 
     def restore_state(self, path: Path) -> float | None:
         """Resume from a snapshot `save_state` wrote for this course.
@@ -424,9 +285,4 @@ class RideSession:
         try:
             self.engine.close()
         finally:
-            if self.writer is not None:
-                with self._io_lock:
-                    self.writer.close()
-            if self.recorder is not None:
-                self.recorder.rec.flush(timeout_sec=10.0)
-                self.recorder.rec.disconnect()
+            self.sinks.close()

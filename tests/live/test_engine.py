@@ -43,9 +43,9 @@ def _ride(engine: PacingEngine, course, plan, t_end: float, *, v_scale: float = 
         s = float(np.interp(t * v_scale, plan.t_s, plan.s_m))
         v = float(np.interp(s, plan.s_m, plan.v_mps)) * v_scale
         lat, lon, alt = (float(a) for a in course.to_geodetic(*course.enu_at(s, 0.0)))
-        engine.on_gps(GpsFix(t, lat, lon, alt))
-        engine.on_speed(WheelSpeed(t, v))
-        engine.on_power(PowerReading(
+        engine.on_sample(GpsFix(t, lat, lon, alt))
+        engine.on_sample(WheelSpeed(t, v))
+        engine.on_sample(PowerReading(
             t, max(float(np.interp(s, plan.s_m, plan.power_w)), 0.0) + extra_power_w))
         advice = engine.update(t)
         if advice is not None:
@@ -154,10 +154,10 @@ def test_clocked_by_stamps_only(course, plan):
                                                   on_plan_band_j=0.0),
                           planner=_planner(course, plan))
     assert engine.update(0.0) is None  # no state yet
-    engine.on_speed(WheelSpeed(0.0, 5.0))
+    engine.on_sample(WheelSpeed(0.0, 5.0))
     assert engine.update(0.0) is None  # speed alone does not place the rider
     lat, lon, alt = (float(a) for a in course.to_geodetic(*course.enu_at(20.0, 0.0)))
-    engine.on_gps(GpsFix(0.5, lat, lon, alt))
+    engine.on_sample(GpsFix(0.5, lat, lon, alt))
     first = engine.update(1.0)
     assert first is not None and first.stamp_s == 1.0
     assert engine.update(2.5) is None  # 1.5 s of stamp time: not due
@@ -173,7 +173,7 @@ def test_fallback_keeps_last_good_advice_shifted(course, plan):
     last_good = [a for a in advice if not a.fallback][-1]
     fallbacks_before = engine.counters.get("fallbacks", 0)
     # The solver now gets no iterations at all: every replan fails for real.
-    engine.planner = _planner(course, plan, HorizonSettings(max_iter=0))
+    engine.horizon.planner = _planner(course, plan, HorizonSettings(max_iter=0))
     failed = _ride(engine, course, plan, 25.0, start=20.0)
     assert all(a.fallback for a in failed)
     assert "Maximum_Iterations_Exceeded" in failed[0].solver_status
@@ -192,7 +192,7 @@ def test_fallback_keeps_last_good_advice_shifted(course, plan):
     rider_model = diags["itt_planner/rider_model"]  # the rider followed: no CP refit
     assert rider_model.level == Level.OK and rider_model.values["refits"] == "0"
     # Recovery: a working planner again clears the error.
-    engine.planner = good
+    engine.horizon.planner = good
     back = _ride(engine, course, plan, 30.0, start=25.0)
     assert not all(a.fallback for a in back)
     if not back[-1].fallback:
@@ -207,7 +207,8 @@ def test_fallback_before_any_good_solve_uses_the_plan(course, plan):
     a = _ride(engine, course, plan, 6.0)[-1]
     assert a.fallback
     np.testing.assert_allclose(a.horizon_speed_mps, plan.at("v_mps", a.horizon_s_m))
-    assert a.horizon_s_m[-1] == pytest.approx(a.state.s_m + 1000.0)  # EngineSettings
+    # Over the planner's horizon: its HorizonSettings own the length.
+    assert a.horizon_s_m[-1] == pytest.approx(a.state.s_m + 400.0)
     assert a.predicted_finish_s == pytest.approx(plan.finish_time_s, rel=0.02)
 
 
@@ -251,10 +252,10 @@ def test_bad_inputs_and_staleness_in_diagnostics(course, plan):
     engine = PacingEngine(course, RIDER, plan, settings=PATIENT,
                           planner=_planner(course, plan))
     _ride(engine, course, plan, 3.0)
-    engine.on_power(PowerReading(3.0, math.nan))
-    engine.on_speed(WheelSpeed(3.0, -1.0))
-    engine.on_gps(GpsFix(1.0, 0.0, 0.0, 0.0))  # time going backwards
-    engine.on_gps(GpsFix(3.0, 46.0, 11.0, 0.0))  # far off the course
+    engine.on_sample(PowerReading(3.0, math.nan))
+    engine.on_sample(WheelSpeed(3.0, -1.0))
+    engine.on_sample(GpsFix(1.0, 0.0, 0.0, 0.0))  # time going backwards
+    engine.on_sample(GpsFix(3.0, 46.0, 11.0, 0.0))  # far off the course
     diags = {d.name: d for d in engine.diagnostics(3.0)}
     rejected = diags["itt_planner/inputs_rejected"]
     assert rejected.level == Level.WARN
@@ -278,8 +279,8 @@ def test_inputs_from_other_threads_while_solving(course, plan):
     def feed():
         try:
             for k in range(2000):
-                engine.on_power(PowerReading(2.0 + k * 1e-3, 400.0))
-                engine.on_speed(WheelSpeed(2.0 + k * 1e-3, 12.0))
+                engine.on_sample(PowerReading(2.0 + k * 1e-3, 400.0))
+                engine.on_sample(WheelSpeed(2.0 + k * 1e-3, 12.0))
         except Exception as err:  # pragma: no cover - the assertion below reports it
             errors.append(err)
 

@@ -9,12 +9,18 @@ import pytest
 
 from itt_planner.course.fit import fit_course
 from itt_planner.course.track_files import read_recording
-from itt_planner.live.estimate import StateEstimator
+from itt_planner.live.estimate import EstimatorSettings, StateEstimator
 from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
+from itt_planner.live.wprime_balance import WPrimeBalance
 from itt_planner.model.rider import PRESETS
 from itt_planner.sim import SensorSettings, hairpin_course, sensor_samples
 
 RIDER = PRESETS["paper"]
+
+
+def _estimator(course) -> StateEstimator:
+    """An estimator with a W' model of its own (the engine's builds one the same way)."""
+    return StateEstimator(course, WPrimeBalance(RIDER, EstimatorSettings().power_hold_s))
 
 
 @pytest.fixture(scope="module")
@@ -37,12 +43,8 @@ def _feed(est: StateEstimator, samples: list[Sample]) -> list[tuple[float, float
     """Feed samples in order; (stamp, published s) after every sample."""
     out = []
     for smp in samples:
-        if isinstance(smp, GpsFix):
-            est.on_gps(smp)
-        elif isinstance(smp, WheelSpeed):
-            est.on_speed(smp)
-        else:
-            est.on_power(smp)
+        _, hook = est.hook(smp)
+        hook(smp)
         state = est.state(smp.stamp_s)
         if state is not None:
             out.append((state.stamp_s, state.s_m))
@@ -55,7 +57,7 @@ def test_simulated_ride_with_dropout_and_outliers(course, seed):
     drop_start, drop_len = 100.0, 60.0
     sensors = SensorSettings(dropouts=((drop_start, drop_len),), outliers=(30.0, 50.0, 200.0))
     samples = sensor_samples(course, t, s, n, v, p, np.random.default_rng(seed), sensors)
-    est = StateEstimator(course, RIDER)
+    est = _estimator(course)
     track = np.array(_feed(est, samples))
     err = track[:, 1] - np.interp(track[:, 0], t, s)
     assert np.median(np.abs(err)) <= 10.0
@@ -74,7 +76,7 @@ def test_along_track_jump_is_gated_and_crossing_is_not_taken(course):
     """A fix 100 m ahead ON the road passes the off-road test; the innovation gate must
     catch it. Where the road crosses itself (s ~ 550 m and ~ 1020 m) the match stays on
     the branch being ridden."""
-    est = StateEstimator(course, RIDER)
+    est = _estimator(course)
     v = 12.0
     jumped = None
     for k in range(0, 120):
@@ -96,7 +98,7 @@ def test_along_track_jump_is_gated_and_crossing_is_not_taken(course):
 def test_lost_estimator_reacquires_globally(course):
     """Started at the wrong place (a wrong restore), the estimator rejects the first
     fixes as outliers, then re-acquires on the whole course."""
-    est = StateEstimator(course, RIDER)
+    est = _estimator(course)
     est.restore({"s_m": 0.0, "w_prime_j": 20000.0, "start_stamp_s": 0.0, "stamp_s": 0.0})
     for k in range(1, 12):
         s_true = 1800.0 + 10.0 * k
@@ -115,7 +117,7 @@ def test_lost_estimator_reacquires_globally(course):
 
 
 def test_bad_inputs_are_counted_not_raised(course):
-    est = StateEstimator(course, RIDER)
+    est = _estimator(course)
     lat, lon, alt = (float(a) for a in course.to_geodetic(*course.enu_at(100.0, 0.0)))
     assert est.on_gps(GpsFix(0.0, lat, lon, alt))
     assert not est.on_power(PowerReading(0.5, math.nan))
@@ -142,7 +144,7 @@ def test_bad_inputs_are_counted_not_raised(course):
 def test_wprime_balance_matches_skiba(course):
     """E9 Skiba: 600 s at CP + 30 W depletes 18 kJ; then below CP it recovers
     exponentially with time constant E_0 / (W_C - P)."""
-    est = StateEstimator(course, RIDER)
+    est = _estimator(course)
     cp, e0 = RIDER.critical_power_w, RIDER.w_prime_j
     for k in range(601):
         est.on_power(PowerReading(float(k), cp + 30.0))
@@ -159,31 +161,46 @@ def test_wprime_balance_matches_skiba(course):
 
 def test_refit_critical_power_explains_a_rider_out_of_wprime(course):
     """A rider whose true CP is 5 % below the believed one holds 500 W until empty, then
-    only CP - 10 W: the balance at the believed CP still shows W' left; the refit finds
-    the CP whose balance empties (the true one), and never raises CP."""
-    est = StateEstimator(course, RIDER)
+    only CP - 10 W: the balance at the believed CP still shows W' left; the fit finds
+    the CP whose balance empties (the true one), and using it empties the balance."""
+    est = _estimator(course)
+    balance = est.balance
     cp, e0 = RIDER.critical_power_w, RIDER.w_prime_j
     cp_true = 0.95 * cp
     t_empty = e0 / (500.0 - cp_true)
     for k in range(int(t_empty) + 30):
         est.on_power(PowerReading(float(k), 500.0 if k < t_empty else cp_true - 10.0))
     assert est.snapshot()["w_prime_j"] > 0.2 * e0  # the believed balance: far from empty
-    assert est.refit_critical_power(0.0) == pytest.approx(cp_true, abs=2.0)
-    assert est.rider.critical_power_w < cp
+    fitted = balance.fit_critical_power(0.5 * cp, cp)
+    assert fitted == pytest.approx(cp_true, abs=2.0)
+    assert balance.cp_w == cp  # fitting changes nothing
+    balance.use_critical_power(fitted)
+    assert balance.cp_w == fitted
     assert est.snapshot()["w_prime_j"] < 0.02 * e0
-    # A balance that already agrees leaves CP alone.
-    assert est.refit_critical_power(0.0) == pytest.approx(est.rider.critical_power_w)
+    # A balance that already agrees fits the CP in use again.
+    assert balance.fit_critical_power(0.5 * fitted, fitted) == pytest.approx(fitted, abs=0.05)
+
+
+def test_every_sample_type_has_one_hook(course):
+    """The engine dispatches through the estimator's hook table: one hook per sample
+    type, and a type without one is refused (the engine counts it, never crashes)."""
+    est = _estimator(course)
+    assert [name for name, _ in est.hooks.values()] == ["gps", "speed", "power"]
+    assert est.hook(WheelSpeed(0.0, 5.0))[1](WheelSpeed(0.0, 5.0))
+    assert est.counters["speed_accepted"] == 1
+    with pytest.raises(TypeError, match="no hook for str"):
+        est.hook("not a sample")  # type: ignore[arg-type]
 
 
 def test_snapshot_restore_keeps_wprime_and_progress(course):
-    est = StateEstimator(course, RIDER)
+    est = _estimator(course)
     t, s, n, v, p = _truth(course)
     samples = sensor_samples(course, t, s, n, v, p + 200.0, np.random.default_rng(0))
     half = [x for x in samples if x.stamp_s < 100.0]
     _feed(est, half)
     before = est.state(99.0)
     snap = est.snapshot()
-    fresh = StateEstimator(course, RIDER)
+    fresh = _estimator(course)
     fresh.restore(snap)
     restored = fresh.state(99.0)
     assert restored.w_prime_j == pytest.approx(before.w_prime_j)
@@ -206,7 +223,7 @@ def test_real_ride_on_its_own_track(data_file, name):
     whole ride is used (the estimator runs at ~10 k samples/s)."""
     rec = read_recording(data_file(f"rides/{name}"))
     course = fit_course(rec)
-    est = StateEstimator(course, RIDER)
+    est = _estimator(course)
     progress = []
     for i in range(len(rec)):
         stamp = float(rec.time_s[i])
@@ -239,7 +256,7 @@ def test_closed_loop_wraps_into_laps():
     loop = Course.from_centerline("loop", np.append(x, x[0]), np.append(y, y[0]),
                                   np.zeros(801), origin=GeoOrigin(45.0, 11.0, 0.0),
                                   closed_loop=True)
-    est = StateEstimator(loop, RIDER)
+    est = _estimator(loop)
     v, length = 12.0, loop.length_m
     published = []
     for k in range(int(1.3 * length / v)):

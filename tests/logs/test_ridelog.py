@@ -14,19 +14,14 @@ from mcap.reader import make_reader
 from support.mcap_readers import check_all_readers, rerun_value
 from support.messages import make_advice
 
-from itt_msgs_py import topics
+from itt_msgs_py import registry, topics
 from itt_msgs_py.convert import stamp_ns
 from itt_msgs_py.definitions import msgdef
 from itt_planner.errors import RideLogError
 from itt_planner.live.advice import Advice, Diagnostic, Level
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.logs.ridelog import (
-    RawRecord,
-    RideLogReader,
-    RideLogWriter,
-    RideMetadata,
-    read_ride_log,
-)
+from itt_planner.logs.ridelog import RawRecord, RideLogReader, read_ride_log
+from itt_planner.logs.ridelog_writer import RideLogWriter, RideMetadata
 
 T0 = 1_700_000_000.0
 STEPS = 300  # ~1 MB of messages: several 256 KiB chunks
@@ -97,7 +92,7 @@ def test_round_trip_and_metadata(ride_log: tuple[Path, list]) -> None:
 
 def test_four_readers_agree(ride_log: tuple[Path, list], tmp_path: Path) -> None:
     path, _ = ride_log
-    expected = {t.name(): (t.msgtype, STEPS) for t in topics.TOPICS}
+    expected = {t.name(): (t.msgtype, STEPS) for t in registry.TOPICS}
     got = check_all_readers(path, expected, tmp_path)
     i = 7
     lat = 45.0 + 1e-4 * i
@@ -135,7 +130,7 @@ def test_channels_carry_the_offered_qos_rosbag2_replays(ride_log: tuple[Path, li
     for log, prefix in ((path, "/itt/"), (copy, "/other/")):
         with AnyReader([log]) as reader:
             qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}
-        for topic in topics.TOPICS:
+        for topic in registry.TOPICS:
             name = topic.name().replace("/itt/", prefix)
             (profile,) = qos[name]
             want = (QosReliability.BEST_EFFORT if topic.direction is topics.Direction.IN
@@ -199,8 +194,8 @@ def test_crash_leaves_a_readable_file(tmp_path: Path) -> None:
     path = tmp_path / "crash.mcap"
     script = (
         "import os, sys; sys.path[:0] = [sys.argv[2], sys.argv[3]]; from test_ridelog import write_log\n"
-        "from itt_planner.logs import ridelog as ridelog\n"
-        "ridelog.RideLogWriter.close = lambda self: os._exit(3)  # die before the summary\n"
+        "from itt_planner.logs import ridelog_writer\n"
+        "ridelog_writer.RideLogWriter.close = lambda self: os._exit(3)  # die before the summary\n"
         "write_log(__import__('pathlib').Path(sys.argv[1]))\n")
     proc = subprocess.run([sys.executable, "-c", script, str(path), str(Path(__file__).parent),
                            str(Path(__file__).parents[1])],
@@ -246,7 +241,7 @@ def test_known_topic_with_wrong_type_is_an_error_naming_it(tmp_path: Path) -> No
         # A wheel speed published on the power topic.
         w.write_msg(topics.Topic("power", "geometry_msgs/msg/TwistStamped", topics.SENSOR_QOS,
                                  topics.Direction.IN),
-                    __import__("itt_msgs_py.convert").convert.wheel_speed_to_msg(
+                    registry.wheel_speed_to_msg(
                         WheelSpeed(T0, 3.0)))
         w.write_sample(WheelSpeed(T0 + 1, 4.0))
     read: list = []

@@ -16,7 +16,7 @@ from mcap_ros2._dynamic import generate_dynamic
 from support.messages import make_advice, make_advice_without_corner
 
 import itt_msgs_py
-from itt_msgs_py import convert, topics
+from itt_msgs_py import convert, registry, topics
 from itt_msgs_py.definitions import SEPARATOR, msg_texts, msgdef
 from itt_planner.live.advice import Advice, Cue, Diagnostic, Level
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
@@ -48,7 +48,7 @@ def test_schema_text_is_the_msg_file_plus_dependency_blocks() -> None:
                        "MSG: itt_msgs/RiderState"]
     assert blocks[3] == "MSG: itt_msgs/RiderState\n" + (MSG_DIR / "RiderState.msg").read_text()
     # An independent parser (mcap_ros2's) accepts every schema we write.
-    for topic in topics.TOPICS:
+    for topic in registry.TOPICS:
         assert topic.msgtype in generate_dynamic(topic.msgtype, msgdef(topic.msgtype))
 
 
@@ -56,15 +56,26 @@ def test_topic_names_and_qos() -> None:
     names = itt_msgs_py.topics_by_name()
     assert set(names) == {"/itt/gps/fix", "/itt/speed", "/itt/power", "/itt/target_power",
                           "/itt/target_line", "/itt/advice", "/diagnostics"}
-    assert topics.GPS_FIX.name("/car2/itt/") == "/car2/itt/gps/fix"
+    assert registry.GPS_FIX.name("/car2/itt/") == "/car2/itt/gps/fix"
     assert topics.DIAGNOSTICS.name("/car2") == "/diagnostics"
-    assert topics.GPS_FIX.name("") == "/gps/fix"
+    assert registry.GPS_FIX.name("") == "/gps/fix"
     with pytest.raises(ValueError, match="bad token"):
         topics.normalize_namespace("/itt/2fast")
     for t in itt_msgs_py.INPUT_TOPICS:
         assert t.qos == topics.QoS(topics.Reliability.BEST_EFFORT, depth=5)
     for t in (topics.ADVICE, topics.TARGET_LINE, topics.TARGET_POWER, topics.DIAGNOSTICS):
         assert t.qos.reliability is topics.Reliability.RELIABLE and t.qos.depth == 10
+
+
+def test_the_registry_has_one_entry_per_input_topic() -> None:
+    """Each input topic has one entry (sample type, converters); nothing else is a sample."""
+    entries = registry.SAMPLE_TOPICS
+    assert [e.topic for e in entries] == list(registry.INPUT_TOPICS)
+    assert [e.sample_type for e in entries] == [GpsFix, WheelSpeed, PowerReading]
+    assert all(t.direction is topics.Direction.IN for t in registry.INPUT_TOPICS)
+    assert not registry.is_sample(make_advice()) and not registry.is_sample(None)
+    with pytest.raises(TypeError, match="not a registered input sample"):
+        registry.sample_to_msg(make_advice())  # type: ignore[arg-type]
 
 
 def _roundtrip(msg: object) -> object:
@@ -81,9 +92,10 @@ def _roundtrip(msg: object) -> object:
     PowerReading(12.0, 0.0),
 ])
 def test_samples_round_trip_through_cdr(sample: object) -> None:
-    topic, msg = convert.sample_to_msg(sample)  # type: ignore[arg-type]
+    topic, msg = registry.sample_to_msg(sample)  # type: ignore[arg-type]
     assert topic.msgtype == type(msg).__msgtype__
-    back = convert.msg_to_core(_roundtrip(msg))
+    assert registry.is_sample(sample)
+    back = registry.to_core(topic, _roundtrip(msg))
     assert type(back) is type(sample)
     for name, value in vars(sample).items():
         got = getattr(back, name)
@@ -102,7 +114,7 @@ def test_stamps_keep_nanoseconds() -> None:
 
 def test_advice_round_trip_and_derived_messages() -> None:
     advice = make_advice()
-    back = convert.msg_to_core(_roundtrip(convert.advice_to_msg(advice)))
+    back = convert.output_to_core(_roundtrip(convert.advice_to_msg(advice)))
     assert isinstance(back, Advice)
     for name in vars(advice):
         want, got = getattr(advice, name), getattr(back, name)
@@ -119,7 +131,7 @@ def test_advice_round_trip_and_derived_messages() -> None:
     assert tp.cue == tp.CUE_BRAKE == Cue.BRAKE
     assert (tp.corner_speed_mps, tp.corner_distance_m) == (8.25, 87.5)
     # No corner ahead: NaN crosses the wire as NaN; the cue constants match the enum.
-    none = convert.msg_to_core(_roundtrip(convert.advice_to_msg(make_advice_without_corner())))
+    none = convert.output_to_core(_roundtrip(convert.advice_to_msg(make_advice_without_corner())))
     assert math.isnan(none.corner_speed_mps) and none.cue is Cue.PEDAL
     msg = convert.advice_to_msg(advice)
     assert {c.name: int(c) for c in Cue} == {n: getattr(msg, f"CUE_{n}") for n in Cue.__members__}
@@ -142,7 +154,7 @@ def test_diagnostics_round_trip() -> None:
              Diagnostic(5.0, "itt/gps", Level.OK, "fresh")]
     msg = _roundtrip(convert.diagnostics_to_msg(diags, 5.0))
     assert msg.status[0].hardware_id == "itt_planner"
-    assert convert.msg_to_core(msg) == diags
+    assert convert.output_to_core(msg) == diags
 
 
 def test_wheel_contains_the_msg_files(tmp_path: Path) -> None:

@@ -25,7 +25,7 @@ import pytest
 from rosbags.interfaces import Nodetype
 from support.messages import make_advice
 
-from itt_msgs_py import convert, deserialize, serialize, typestore
+from itt_msgs_py import convert, deserialize, registry, serialize, typestore
 from itt_msgs_py.dds_env import profile_path
 from itt_planner.live.advice import Diagnostic, Level
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
@@ -215,11 +215,11 @@ MESSAGES: dict[str, Callable[[], Any]] = {
     "itt_msgs/msg/Advice": lambda: convert.advice_to_msg(_ADVICE),
     "itt_msgs/msg/RiderState": lambda: convert.state_to_msg(_ADVICE.state),
     "itt_msgs/msg/TargetPower": lambda: convert.target_power_msg(_ADVICE),
-    "itt_msgs/msg/PowerStamped": lambda: convert.power_reading_to_msg(
+    "itt_msgs/msg/PowerStamped": lambda: registry.power_reading_to_msg(
         PowerReading(stamp_s=1_700_000_000.123456789, power_w=312.5, cadence_rpm=91.0)),
-    "sensor_msgs/msg/NavSatFix": lambda: convert.gps_fix_to_msg(
+    "sensor_msgs/msg/NavSatFix": lambda: registry.gps_fix_to_msg(
         GpsFix(stamp_s=1_700_000_001.5, lat_deg=45.438, lon_deg=10.99, alt_m=59.0, std_m=2.5)),
-    "geometry_msgs/msg/TwistStamped": lambda: convert.wheel_speed_to_msg(
+    "geometry_msgs/msg/TwistStamped": lambda: registry.wheel_speed_to_msg(
         WheelSpeed(stamp_s=1_700_000_002.25, speed_mps=13.4)),
     "nav_msgs/msg/Path": lambda: convert.target_line_msg(_ADVICE),
     "diagnostic_msgs/msg/DiagnosticArray": lambda: convert.diagnostics_to_msg(

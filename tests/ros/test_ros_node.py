@@ -29,11 +29,12 @@ from support.mcap_readers import rosbags_messages  # noqa: E402
 from support.ros_support import RIDE_T0_S, RIDER, Proc, Ride, cached_ride, cli  # noqa: E402
 
 from itt_msgs_py import serialize, topics  # noqa: E402
-from itt_msgs_py.convert import msg_to_advice, msg_to_diagnostics, sample_to_msg  # noqa: E402
+from itt_msgs_py.convert import msg_to_advice, msg_to_diagnostics  # noqa: E402
+from itt_msgs_py.registry import INPUT_TOPICS, TOPICS, sample_to_msg  # noqa: E402
 from itt_planner.live.samples import GpsFix  # noqa: E402
 from itt_planner.logs.ridelog import read_ride_log  # noqa: E402
+from itt_planner.session.config import SessionConfig  # noqa: E402
 from itt_planner.session.replay import replay_ride  # noqa: E402
-from itt_planner.session.ride_session import SessionConfig  # noqa: E402
 
 HAIRPIN_LENGTH_M = 2738
 
@@ -99,7 +100,7 @@ def test_node_turns_inputs_into_advice_and_survives_malformed_payloads(
     assert node.get_namespace() == "/itt"
     feeder = rclpy.create_node("feeder", namespace="/itt")
     pubs = {t.key: feeder.create_publisher(message_class(t.msgtype), t.key, qos_profile(t.qos))
-            for t in topics.INPUT_TOPICS}
+            for t in INPUT_TOPICS}
     got: dict[str, list[Any]] = {"advice": [], "diag": []}
     feeder.create_subscription(message_class(topics.ADVICE.msgtype), "advice",
                                got["advice"].append, qos_profile(topics.ADVICE.qos), raw=True)
@@ -294,7 +295,7 @@ def test_play_node_record_pipeline_agrees_with_the_embedded_replay(
 
     # Every recorded message decodes with rosbags to the type its channel declares.
     info, msgs = rosbags_messages(tmp_path / "out.mcap")
-    declared = {t.name(): t.msgtype for t in topics.TOPICS}
+    declared = {t.name(): t.msgtype for t in TOPICS}
     assert {topic: info[topic][0] for topic in declared} == declared
     for topic, decoded in msgs.items():
         assert all(m.__msgtype__ == info[topic][0] for m in decoded)

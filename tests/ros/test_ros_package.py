@@ -159,7 +159,7 @@ def _node_parameters() -> dict[str, object]:
     """Every parameter the node declares with its default (session's and node's own)."""
     from itt_planner_ros.pacing_node import NODE_PARAMS
 
-    from itt_planner.session.ride_session import SessionConfig
+    from itt_planner.session.config import SessionConfig
 
     session = {f.name: f.default for f in fields(SessionConfig) if f.name != "namespace"}
     return {**session, **NODE_PARAMS}

@@ -13,7 +13,8 @@ from typer.testing import CliRunner
 
 from itt_planner.cli import app
 from itt_planner.live.engine import ON_PLAN, EngineSettings, PacingEngine
-from itt_planner.logs.ridelog import RawRecord, RideLogReader, RideLogWriter, RideMetadata
+from itt_planner.logs.ridelog import RawRecord, RideLogReader
+from itt_planner.logs.ridelog_writer import RideLogWriter, RideMetadata
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import PRESETS
 from itt_planner.ocp.cache import load_or_solve
@@ -21,9 +22,9 @@ from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.ocp.horizon import HorizonPlanner
 from itt_planner.ocp.horizon_settings import HorizonSettings
 from itt_planner.session import replay as replay_mod
-from itt_planner.session import ride_session as session_mod
+from itt_planner.session.config import NO_WALL_TIME_LIMIT_S, SessionConfig
 from itt_planner.session.replay import ReplaySettings, parse_speed, replay
-from itt_planner.session.ride_session import RideSession, SessionConfig
+from itt_planner.session.ride_session import RideSession
 from itt_planner.sim import hairpin_course, sensor_samples
 
 T0 = 1_779_000_000.0
@@ -50,7 +51,7 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> dict:
     # Built once (compiles CasADi Functions); no wall-time cap, as `replay_ride` does
     # for a deterministic replay.
     planner = HorizonPlanner(course, rider, plan, settings=HorizonSettings(
-        horizon_m=HORIZON_M, max_wall_time_s=session_mod.NO_WALL_TIME_LIMIT_S))
+        horizon_m=HORIZON_M, max_wall_time_s=NO_WALL_TIME_LIMIT_S))
     return {"course": course, "rider": rider, "plan": plan, "log": log, "tmp": tmp,
             "n_in": len(samples), "planner": planner}
 
@@ -62,8 +63,7 @@ def session_for(setup: dict, output: Path | None = None,
     setup["planner"].reset()
     engine = PacingEngine(setup["course"], setup["rider"], setup["plan"],
                           planner=setup["planner"],
-                          settings=EngineSettings(replan_period_s=REPLAN_S,
-                                                  horizon_m=HORIZON_M, deterministic=True))
+                          settings=EngineSettings(replan_period_s=REPLAN_S, deterministic=True))
     writer = RideLogWriter(output) if output is not None else None
     return RideSession(SessionConfig(replan_period_s=REPLAN_S, horizon_m=HORIZON_M,
                                      deterministic=True),

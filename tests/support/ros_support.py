@@ -38,7 +38,7 @@ def make_ride(folder: Path, *, input_hz: float = 4.0, gps_hz: float = 1.0,
     bias + noise, wheel speed, power) sample it at the given rates. The course and plan
     are solved once per process (~10 s).
     """
-    from itt_planner.logs.ridelog import RideLogWriter, RideMetadata
+    from itt_planner.logs.ridelog_writer import RideLogWriter, RideMetadata
     from itt_planner.sim import SensorSettings, sensor_samples
 
     folder.mkdir(parents=True, exist_ok=True)

@@ -14,8 +14,9 @@
 
 """The pacing node: ROS 2 topics in and out of an `itt_planner.session.ride_session.RideSession`.
 
-Only ROS conversion lives here. Subscriptions take `gps/fix`, `speed` and `power` as CDR
-bytes and decode them with `itt_msgs_py` (so a malformed payload is counted, not fatal);
+Only ROS conversion lives here. One subscription per entry of the sample registry
+(`itt_msgs_py.registry`: `gps/fix`, `speed`, `power`) takes CDR bytes and decodes them
+with the entry's converter (so a malformed payload is counted, not fatal);
 a timer in its own mutually exclusive callback group runs the session's tick, so a long
 solve never blocks the inputs; advice goes out as `target_power`, `target_line`
 (nav_msgs/Path, frame `map`), `advice` and `/diagnostics`, serialized by `itt_msgs_py`
@@ -31,24 +32,22 @@ from pathlib import Path
 import time
 from typing import Any
 
-from itt_msgs_py import deserialize, serialize, topics
-from itt_msgs_py.convert import (advice_to_msg, diagnostics_to_msg, msg_to_gps_fix,
-                                 msg_to_power_reading, msg_to_wheel_speed,
-                                 target_line_msg, target_power_msg)
-from itt_planner.session.ride_session import RideSession, SessionConfig
+from itt_msgs_py import deserialize, registry, serialize, topics
+from itt_msgs_py.convert import (advice_to_msg, diagnostics_to_msg, target_line_msg,
+                                 target_power_msg)
+from itt_planner.session.config import SessionConfig
+from itt_planner.session.ride_session import RideSession
 from itt_planner_ros.ros_types import message_class, qos_profile
 import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
+from rclpy.utilities import ok as rclpy_ok, try_shutdown
 
 NODE_NAME = 'itt_pacing'
 #: Parameters of the node itself; the session's come from `SessionConfig`.
 NODE_PARAMS = {'tick_period_s': 0.1, 'rerun_sink': '', 'output_log': '',
                'state_file': '', 'state_period_s': 2.0}
-INPUTS = ((topics.GPS_FIX, msg_to_gps_fix), (topics.SPEED, msg_to_wheel_speed),
-          (topics.POWER, msg_to_power_reading))
-OUTPUTS = (topics.TARGET_POWER, topics.TARGET_LINE, topics.ADVICE, topics.DIAGNOSTICS)
 #: A clock jump longer than this (a player restarted further on) is not ticked through.
 MAX_CATCH_UP_S = 5.0
 
@@ -75,26 +74,33 @@ class PacingNode(Node):
         self._last_save = time.monotonic()
         try:
             self._resume()
-            for topic, convert in INPUTS:
+            for entry in registry.SAMPLE_TOPICS:
+                topic = entry.topic
                 self.create_subscription(message_class(topic.msgtype), topic.key,
-                                         self._on_input(topic, convert),
-                                         qos_profile(topic.qos), raw=True)
+                                         self._on_input(entry), qos_profile(topic.qos),
+                                         raw=True)
             self._pub = {t.key: self.create_publisher(message_class(t.msgtype), t.key,
-                                                      qos_profile(t.qos)) for t in OUTPUTS}
+                                                      qos_profile(t.qos))
+                         for t in topics.OUTPUT_TOPICS}
             # The replan may take longer than a tick: its own group keeps inputs flowing.
-            self.create_timer(value['tick_period_s'], self._tick,
-                              callback_group=MutuallyExclusiveCallbackGroup())
+            group = MutuallyExclusiveCallbackGroup()  # type: ignore[no-untyped-call]
+            self.create_timer(value['tick_period_s'], self._tick, callback_group=group)
         except BaseException:
             self.session.close()  # the output log is finished even when start-up fails
             raise
-        self.get_logger().info(
+        self._log().info(
             f'ready on {self.get_namespace()}: course {config.course}, rider {config.rider},'
             f' plan {self.session.plan.solver_status}, replan every {config.replan_period_s} s')
 
-    def _on_input(self, topic: topics.Topic, convert: Any) -> Any:
+    def _log(self) -> Any:
+        return self.get_logger()  # type: ignore[no-untyped-call]
+
+    def _on_input(self, entry: registry.SampleTopic[Any]) -> Any:
+        topic = entry.topic
+
         def callback(data: bytes) -> None:
             try:
-                sample = convert(deserialize(data, topic.msgtype))
+                sample = entry.to_sample(deserialize(data, topic.msgtype))
             except Exception as err:  # noqa: BLE001  (a corrupt payload raises many types)
                 self.session.on_malformed(topic.key, f'{type(err).__name__}: {err}')
                 return
@@ -133,10 +139,10 @@ class PacingNode(Node):
         try:
             w_prime = self.session.restore_state(self._state_path)
         except ValueError as err:
-            self.get_logger().warning(f'{err}: starting fresh')
+            self._log().warning(f'{err}: starting fresh')
             return
         if w_prime is not None:
-            self.get_logger().info(f"resumed from {self._state_path}: W' {w_prime:.0f} J")
+            self._log().info(f"resumed from {self._state_path}: W' {w_prime:.0f} J")
 
     def save_state(self) -> None:
         """Persist the engine's W' state now (no-op without `state_file`)."""
@@ -146,7 +152,7 @@ class PacingNode(Node):
         try:
             self.session.save_state(self._state_path)
         except OSError as err:
-            self.get_logger().error(f'cannot save state to {self._state_path}: {err}',
+            self._log().error(f'cannot save state to {self._state_path}: {err}',
                                     throttle_duration_sec=30.0)
 
 
@@ -163,7 +169,7 @@ def run(args: list[str] | None = None, *, namespace: str = topics.DEFAULT_NAMESP
         try:
             node = PacingNode(namespace=namespace, parameter_overrides=parameter_overrides)
         except Exception:
-            if rclpy.ok():
+            if rclpy_ok():
                 raise
             # SIGINT/SIGTERM during start-up (the plan solve can take a minute) shut the
             # context down under the constructor: that is a stop, not a failure.
@@ -186,8 +192,8 @@ def run(args: list[str] | None = None, *, namespace: str = topics.DEFAULT_NAMESP
         if node is not None:
             node.save_state()
             node.session.close()
-            node.destroy_node()
-        rclpy.try_shutdown()
+            node.destroy_node()  # type: ignore[no-untyped-call]
+        try_shutdown()  # type: ignore[no-untyped-call]
     return result
 
 

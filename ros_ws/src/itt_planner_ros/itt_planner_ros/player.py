@@ -42,7 +42,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosbags.rosbag2.errors import ReaderError
 from rosgraph_msgs.msg import Clock
 
-from itt_msgs_py import DEFAULT_NAMESPACE, topics
+from itt_msgs_py import DEFAULT_NAMESPACE, registry, topics
 from itt_msgs_py.qos import OFFERED_QOS_KEY
 from itt_planner.errors import RideLogError
 from itt_planner.logs.ridelog import MESSAGE_ENCODING, RideLogReader
@@ -59,7 +59,8 @@ log = logging.getLogger(__name__)
 NODE_NAME = 'itt_player'
 CLOCK_TOPIC = '/clock'
 #: rclcpp::ClockQoS, what `ros2 bag play --clock` offers: best effort, keep last 1.
-CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+CLOCK_QOS = QoSProfile(  # type: ignore[no-untyped-call]
+    depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 #: Waiting for subscribers, play this long after the last one matched: a publisher can
 #: see a subscriber before that subscriber knows the publisher, and best-effort messages
 #: sent in between are dropped by the subscriber.
@@ -191,7 +192,7 @@ class _Player:
         self.node = node
         self.settings = settings
         self.stats = PlayStats()
-        known = topics.topics_by_name(settings.namespace)
+        known = registry.topics_by_name(settings.namespace)
         self._publishers: dict[tuple[str, str], Any] = {}
         for channel in channels:
             if settings.topics and channel.topic not in settings.topics:
@@ -226,7 +227,7 @@ class _Player:
     def wait_for_subscribers(self, stop: threading.Event) -> None:
         """Wait until each played pacing input topic, and `/clock` when it is published,
         has a subscriber, or time is up; `/clock` holds the start time meanwhile."""
-        inputs = {t.name(self.settings.namespace) for t in topics.INPUT_TOPICS}
+        inputs = {t.name(self.settings.namespace) for t in registry.INPUT_TOPICS}
         waiting = {topic: pub for (topic, _), pub in self._publishers.items()
                    if pub is not None and topic in inputs}
         if self._clock is not None:  # else a sim-time node's first inputs have no time

@@ -48,7 +48,8 @@ from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 
 from itt_msgs_py import msgdef, typestore
-from itt_planner.logs.ridelog import MESSAGE_ENCODING, RawRecord, RideLogWriter, SCHEMA_ENCODING
+from itt_planner.logs.ridelog import MESSAGE_ENCODING, RawRecord, SCHEMA_ENCODING
+from itt_planner.logs.ridelog_writer import RideLogWriter
 from itt_planner_ros.ros_types import (
     edge_node,
     message_class,
@@ -68,7 +69,8 @@ RECORD_DEPTH = 200
 DRAIN_LIMIT_S = 1.0
 CLOCK_TOPIC = '/clock'
 #: rclcpp::ClockQoS, as a node with `use_sim_time` subscribes to `/clock`.
-CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+CLOCK_QOS = QoSProfile(  # type: ignore[no-untyped-call]
+    depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 
 @dataclass(frozen=True)

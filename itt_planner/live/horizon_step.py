@@ -1,0 +1,165 @@
+"""One horizon replan: the receding-horizon solve from the rider, or the fallback.
+
+`HorizonStep` holds the engine's horizon planner (`ocp.horizon.HorizonPlanner`, whose
+`HorizonSettings` own the horizon's length) and what the last replans left: the last
+good solution, the solver status, iterations and solve time the advice reports, and the
+failures in a row. A failed, raising or overrunning solve never reaches the rider: the
+last good solution, shifted to the current `s`, stays in force as a fallback (before any
+good solve, the full-course plan over the horizon serves).
+
+Determinism: IPOPT's iterates do not depend on the wall clock, but the measured solve
+time and an overrun check against it do. `deterministic` reports `solve_time_s = 0.0`,
+declares no overruns (the planner's own iteration cap is the budget); the measured
+times are still collected in `solve_times_s` (never published) for benchmarks.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import threading
+import time
+from collections import Counter
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from itt_planner.course.geometry import Course
+from itt_planner.live.health import CONVERGED
+from itt_planner.model.rider import Rider
+from itt_planner.model.state import RiderState
+from itt_planner.ocp.horizon_cut import Solution, from_plan
+from itt_planner.ocp.plan import Plan
+
+if TYPE_CHECKING:
+    from itt_planner.ocp.horizon import HorizonPlanner
+    from itt_planner.ocp.horizon_settings import HorizonSolution
+
+log = logging.getLogger(__name__)
+
+
+class HorizonStep:
+    """The horizon planner and the bookkeeping of its solves (module docstring).
+
+    Args:
+        course: the course.
+        planner: the horizon planner.
+        max_solve_time_s, deterministic, line_gate_m: `EngineSettings`.
+        lock: the engine's lock, which guards the last good solution (the on-plan
+            advice and the shortfall detector use it outside the solve).
+        stats: the engine's counters (solves, failures, overruns, fallbacks).
+    """
+
+    def __init__(self, course: Course, planner: HorizonPlanner, *, max_solve_time_s: float,
+                 deterministic: bool, line_gate_m: float, lock: threading.Lock,
+                 stats: Counter[str]) -> None:
+        self.course = course
+        self.planner = planner
+        self.max_solve_time_s = max_solve_time_s
+        self.deterministic = deterministic
+        self.line_gate_m = line_gate_m
+        self._lock = lock
+        self._stats = stats
+        #: The last good solution (set under the engine's lock).
+        self.last_good: Solution | None = None
+        self.status = "none"
+        self.iterations = 0
+        self.solve_time_s = 0.0
+        self.consecutive_failures = 0
+        #: Measured wall-clock solve times (s), for benchmarks; never published.
+        self.solve_times_s: list[float] = []
+
+    @property
+    def horizon_m(self) -> float:
+        """The horizon's length: the planner's."""
+        return self.planner.settings.horizon_m
+
+    def rebuild(self, rider: Rider, plan: Plan) -> None:
+        """A new planner for the rider in use (CP refitted) and the plan in force
+        (re-solved); a new HorizonPlanner costs tens of ms: fine once per event."""
+        from itt_planner.ocp.horizon import HorizonPlanner  # noqa: PLC0415  (CasADi)
+
+        old = self.planner
+        self.planner = HorizonPlanner(self.course, rider, plan, conditions=old.conditions,
+                                      settings=old.settings)
+
+    def report(self, status: str) -> None:
+        """Advice not from a solve (on the plan, finished): no iterations, no time."""
+        self.status, self.iterations, self.solve_time_s = status, 0, 0.0
+
+    def from_plan(self, plan: Plan, state: RiderState, w_prime_max_j: float) -> Solution:
+        """The full-course plan over the horizon: the fallback before any good solve."""
+        return from_plan(plan, self.course, state, self.horizon_m, w_prime_max_j)
+
+    def solve(self, state: RiderState, start: RiderState, plan: Plan,
+              w_prime_max_j: float) -> tuple[Solution, bool]:
+        """Solve the horizon from `start` (`on_line(state)`): the solution and whether
+        it is a fallback (the last good one, or the plan's when that has run out)."""
+        t0 = time.perf_counter()
+        try:
+            sol: HorizonSolution | None = self.planner.solve(start)
+            error = ""
+        except Exception as err:  # the planner must never take the engine down
+            log.exception("engine: horizon solve raised at s=%.0f m", state.s_m)
+            sol, error = None, f"{type(err).__name__}: {err}"
+        elapsed = time.perf_counter() - t0
+        self.solve_times_s.append(elapsed)
+        self._stats["solves"] += 1
+        self.solve_time_s = 0.0 if self.deterministic else elapsed
+        self.status = sol.status if sol is not None else "exception"
+        self.iterations = sol.iterations if sol is not None else 0
+        overrun = not self.deterministic and elapsed > self.max_solve_time_s
+        if sol is not None and sol.success and not overrun:
+            self.consecutive_failures = 0
+            if sol.status not in CONVERGED:
+                self._stats["unconverged_solves"] += 1
+            good = Solution(state, sol.s_m, sol.t_s, sol.power_w, sol.v_mps, sol.n_m,
+                            sol.w_prime_j, sol.predicted_finish_s, sol.w_prime_finish_j)
+            with self._lock:
+                self.last_good = good
+            return good, False
+        self.consecutive_failures += 1
+        if overrun:
+            self._stats["overruns"] += 1
+            self.status = f"overrun ({self.status})"
+        elif sol is None:
+            self._stats["exceptions"] += 1
+            self.status = f"exception ({error})"
+        else:
+            self._stats["failures"] += 1
+        self._stats["fallbacks"] += 1
+        log.warning("engine: replan at s=%.0f m failed (%s); last good advice stays",
+                    state.s_m, self.status)
+        with self._lock:
+            last = self.last_good
+        if last is None or last.s_m[-1] <= state.s_m + 1.0:
+            last = self.from_plan(plan, state, w_prime_max_j)
+        return last, True
+
+    def on_line(self, state: RiderState, plan: Plan) -> RiderState:
+        """The state the horizon plans from: on the advised line (its offset and
+        heading) unless the lateral estimate is more than `line_gate_m` off it.
+
+        Why: the rider steers along the advised line to within a few decimetres (the
+        virtual rider 0.3 m RMS), while a bike GPS places it to 2-3 m across the road.
+        Planning from the estimated offset drew every new line from a noisy point, which
+        the rider then followed: in the closed loop the horizon-led stretches ran 1-2.5 m
+        RMS off the plan's line and lost up to 7 s per km on the technical descent of
+        verona-like (bench/RESULTS.md). A rider really off the line (more than the gate)
+        is planned from where the GPS puts it.
+        """
+        gate = self.line_gate_m
+        with self._lock:
+            good = self.last_good
+        if good is None or not good.s_m[0] <= state.s_m <= good.s_m[-1] or len(good.s_m) < 3:
+            s_line, n_line = plan.s_m, plan.n_m
+        else:
+            s_line, n_line = good.s_m, good.n_m
+        n = float(np.interp(state.s_m, s_line, n_line))
+        if gate <= 0 or not abs(state.n_m - n) <= gate:
+            return state
+        dn_ds = float(np.interp(state.s_m, s_line, np.gradient(n_line, s_line)))
+        one_nk = 1.0 - n * float(self.course.at("kappa_per_m", state.s_m))
+        heading = float(self.course.at("theta_rad", state.s_m)) + math.atan2(dn_ds, one_nk)
+        return dataclasses.replace(state, n_m=n, heading_rad=heading)

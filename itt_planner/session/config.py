@@ -1,0 +1,110 @@
+"""What decides a session's advice, and the engine built from it.
+
+`SessionConfig` is loaded once at the edge (CLI options or ROS parameters: the node
+declares one parameter per field); `build_engine` loads the course, rider and full-course
+plan (from the plan cache) and builds the `PacingEngine` with its horizon planner.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from itt_msgs_py import DEFAULT_NAMESPACE
+from itt_planner.errors import SolveError
+
+if TYPE_CHECKING:
+    from itt_planner.live.engine import PacingEngine
+
+#: IPOPT's own default for `max_wall_time`: no limit.
+NO_WALL_TIME_LIMIT_S = 1e20
+
+
+@dataclass(frozen=True)
+class SessionConfig:
+    """What decides the advice of a session (node parameters, replay options).
+
+    Attributes:
+        course: course spec for `load_course` (demo name, GPS file, `.course.npz`).
+        rider: rider preset name or YAML file.
+        model: full-course plan model, "3d" or "1d".
+        plan: a saved full-course plan (`Plan.save`); "" to take it from `plan_cache`.
+        plan_cache: directory of cached full-course plans (solved there when missing).
+        horizon_m: receding-horizon length (the planner's `HorizonSettings.horizon_m`).
+        replan_period_s: stamp time between two advices.
+        on_plan_band_j: W' deviation from the plan within which the advice is the plan
+            itself (`EngineSettings`); 0.0 replans every period.
+        course_replan_period_s: off the plan, the rest of the course is re-solved at most
+            this often (`CourseReplanSettings`); 0.0 never.
+        line_gate_m: the horizon plans from the advised line unless GPS puts the rider
+            further off it than this (`EngineSettings`).
+        diagnostics_period_s: stamp time between two diagnostics messages.
+        deterministic: no wall-clock values in advice and diagnostics and no wall-time
+            caps, so two runs over one log give byte-identical advice (replays); False
+            is the live behaviour (overruns judged by the wall clock).
+        namespace: ROS namespace of the pacing topics (MCAP topic names).
+    """
+
+    course: str = "verona-like"
+    rider: str = "paper"
+    model: str = "3d"
+    plan: str = ""
+    plan_cache: str = ".itt_cache"
+    horizon_m: float = 1000.0
+    replan_period_s: float = 1.0
+    on_plan_band_j: float = 2000.0
+    course_replan_period_s: float = 30.0
+    line_gate_m: float = 5.0
+    diagnostics_period_s: float = 1.0
+    deterministic: bool = False
+    namespace: str = DEFAULT_NAMESPACE
+
+
+def build_engine(config: SessionConfig) -> PacingEngine:
+    """Load the course, rider and full-course plan of `config` and build the engine.
+
+    Raises:
+        CourseError, RiderError, SolveError: the course, rider or plan is unusable.
+    """
+    # Heavy (CasADi): imported when a session is actually built.
+    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
+    from itt_planner.course.loader import load_course  # noqa: PLC0415
+    from itt_planner.live.course_replan import CourseReplanSettings  # noqa: PLC0415
+    from itt_planner.live.engine import EngineSettings, PacingEngine  # noqa: PLC0415
+    from itt_planner.ocp.horizon import HorizonPlanner  # noqa: PLC0415
+    from itt_planner.ocp.horizon_settings import HorizonSettings  # noqa: PLC0415
+    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
+    from itt_planner.ocp.plan import Plan  # noqa: PLC0415
+    from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
+    from itt_planner.model.rider import load_rider  # noqa: PLC0415
+    from itt_planner.ocp.solver import PlanStatus  # noqa: PLC0415
+
+    course = load_course(config.course)
+    rider = load_rider(config.rider)
+    conditions = Conditions()
+    if config.plan:
+        plan = Plan.load(config.plan)
+    else:
+        plan = load_or_solve(course, rider, conditions, OcpSettings(), config.model,
+                             cache_dir=Path(config.plan_cache))
+    if plan.status in (PlanStatus.FAILED, PlanStatus.INVALID):
+        # A capped plan is still a verified trajectory (advised, with a warning); a failed
+        # or invalid one is not a plan a rider should be given.
+        raise SolveError(f"the full-course plan of {config.course} for {config.rider} is "
+                         f"{plan.status} ({plan.solver_status}): not used",
+                         status=plan.solver_status)
+    horizon = HorizonSettings(horizon_m=config.horizon_m)
+    if config.deterministic:
+        # IPOPT's wall-time cap would make the result depend on the machine's load; the
+        # iteration cap stays the budget.
+        horizon = dataclasses.replace(horizon, max_wall_time_s=NO_WALL_TIME_LIMIT_S)
+    planner = HorizonPlanner(course, rider, plan, conditions=conditions, settings=horizon)
+    settings = EngineSettings(
+        replan_period_s=config.replan_period_s,
+        on_plan_band_j=config.on_plan_band_j, line_gate_m=config.line_gate_m,
+        deterministic=config.deterministic,
+        course_replan=CourseReplanSettings(period_s=config.course_replan_period_s))
+    return PacingEngine(course, rider, plan, conditions=conditions, planner=planner,
+                        settings=settings)
