@@ -17,7 +17,7 @@ from typing import Any
 
 from itt_planner.course.geometry import Course
 from itt_planner.errors import IttError
-from itt_planner.logs.ridelog import RideLogWriter, RideMetadata
+from itt_planner.logs.ridelog_writer import RideLogWriter, RideMetadata
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.plan import Plan
