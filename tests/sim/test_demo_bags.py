@@ -12,8 +12,8 @@ from mcap.reader import make_reader
 from itt_planner.live.course_replan import CourseReplanSettings
 from itt_planner.live.engine import ON_PLAN
 from itt_planner.logs.ridelog import METADATA_NAME, read_ride_log
+from itt_planner.session.config import SessionConfig
 from itt_planner.session.replay import replay_ride
-from itt_planner.session.ride_session import SessionConfig
 
 BAGS = Path(__file__).resolve().parents[2] / "bags"
 DEMO = {  # bag -> (course, rider)
