@@ -24,7 +24,7 @@ from itt_planner.live.advice import Cue
 from itt_planner.logs.ridelog import read_ride_log
 from itt_planner.ocp.plan import Plan
 from itt_planner.session.replay import replay_ride
-from itt_planner.session.ride_session import SessionConfig
+from itt_planner.session.config import SessionConfig
 from itt_planner.view.report import (
     render_html,
     ride_summary,
