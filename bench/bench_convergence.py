@@ -44,7 +44,7 @@ REAL = {"tokyo2020": DATA / "courses" / "tokyo2020_olympic_itt_lap.csv",
         "stjohns": DATA / "rides" / "edge810_vector_stjohns_2013.fit"}
 
 
-def _lap() -> list[dict]:
+def _lap() -> list[dict[str, Any]]:
     out = []
     for side in (900.0, 1037.0, 900.0, 1037.0):
         out += [{"type": "straight", "length_m": side},
@@ -97,7 +97,7 @@ def course_by_name(name: str) -> Course:
     return load_course(name)
 
 
-def _case(name: str, model: str, scale: float, queue: mp.Queue) -> None:
+def _case(name: str, model: str, scale: float, queue: mp.Queue[dict[str, Any]]) -> None:
     import numpy as np  # noqa: PLC0415
 
     from itt_planner.ocp.course_problem import solve_plan  # noqa: PLC0415
@@ -139,7 +139,8 @@ def run_case(name: str, model: str, scale: float) -> dict[str, Any]:
     if queue.empty():
         return {"course": name, "model": model, "mesh": scale, "status": "error",
                 "error": f"child exited with {proc.exitcode}"}
-    return queue.get()
+    row: dict[str, Any] = queue.get()
+    return row
 
 
 def summary(rows: list[dict[str, Any]]) -> str:

@@ -28,10 +28,11 @@ from itt_planner.ocp.cache import load_or_solve
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.horizon import HorizonPlanner
 from itt_planner.ocp.horizon_settings import HorizonSettings
+from itt_planner.ocp.plan import Plan
 from itt_planner.ocp.solver import PlanStatus
 
 
-def state_at(course, plan, s: float) -> RiderState:
+def state_at(course: Course, plan: Plan, s: float) -> RiderState:
     return RiderState(stamp_s=0.0, s_m=s, n_m=float(plan.at("n_m", s)),
                       speed_mps=float(plan.at("v_mps", s)),
                       heading_rad=float(course.at("theta_rad", s) + plan.at("alpha_rad", s)),
@@ -81,7 +82,8 @@ def main() -> None:
             lat_a = np.array(lat)
             if mode == "warm":
                 median_warm[horizon] = float(np.median(lat_a))
-            print(f"H={horizon:.0f} m {mode}: {len(states)} replans, median {1000 * np.median(lat_a):.0f} ms, "
+            print(f"H={horizon:.0f} m {mode}: {len(states)} replans, "
+                  f"median {1000 * np.median(lat_a):.0f} ms, "
                   f"p95 {1000 * np.percentile(lat_a, 95):.0f} ms, max {1000 * lat_a.max():.0f} ms, "
                   f"over 1 s: {(lat_a > 1).sum()}, median it {np.median(its):.0f}, "
                   f"usable {ok}/{len(states)} ({100 * ok / len(states):.1f} %, "
@@ -96,9 +98,11 @@ def main() -> None:
         solve_plan(rest, rider, model="3d")
         base.append(time.perf_counter() - t0)
     if base:
-        print(f"re-solving the remaining course (from {', '.join(f'{f:.0%}' for f in (0.25, 0.5)[: len(base)])}): "
+        starts = ", ".join(f"{f:.0%}" for f in (0.25, 0.5)[: len(base)])
+        print(f"re-solving the remaining course (from {starts}): "
               f"{', '.join(f'{b:.1f}' for b in base)} s; ratio vs median warm replan: "
-              + ", ".join(f"H={h:.0f} m x{np.median(base) / m:.0f}" for h, m in median_warm.items()))
+              + ", ".join(f"H={h:.0f} m x{np.median(base) / m:.0f}"
+                          for h, m in median_warm.items()))
 
 
 if __name__ == "__main__":

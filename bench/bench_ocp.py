@@ -27,6 +27,8 @@ import os
 import resource
 import statistics
 import time
+from collections.abc import Callable
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -36,7 +38,7 @@ from itt_planner.course.loader import load_course
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.dynamics import build_3d
 from itt_planner.model.params import ModelParams
-from itt_planner.model.rider import PRESETS
+from itt_planner.model.rider import PRESETS, Rider
 from itt_planner.ocp.bounds import simple_bounds, speed_limit_mps
 from itt_planner.ocp.course_nlp import start_speed
 from itt_planner.ocp.course_problem import solve_plan
@@ -65,7 +67,7 @@ def piece(course: Course, length_m: float) -> Course:
                                   kappa_per_m=course.kappa_per_m[:k], synthetic=True)
 
 
-def naive_baseline(course: Course, rider) -> dict:
+def naive_baseline(course: Course, rider: Rider) -> dict[str, Any]:
     """Opti + MX, uniform 2 m mesh, one RK4 step per interval, IPOPT defaults."""
     model = build_3d()
     nodes = build_mesh(course, uniform_m=2.0)
@@ -113,21 +115,24 @@ MESH_STUDY_CAPS = {"max_iter": 1500, "max_cpu_time_s": 3600.0}
 MESH_BAR = 0.003
 
 
-def _solve_case(spec: tuple[str, float | None, str, int, dict, Plan | None],
-                out: mp.Queue) -> None:
+def _solve_case(spec: tuple[str, float | None, str, int, dict[str, Any], Plan | None],
+                out: mp.Queue[dict[str, Any]]) -> None:
     """Child process: `runs` solves of one case; reports medians, the peak RSS and the
     last plan (key "plan")."""
     name, piece_m, model, runs, settings, guess = spec
     course = load_course(name)
     if piece_m:
         course = piece(course, piece_m)
-    walls, cpus, plan = [], [], None
+    walls: list[float] = []
+    cpus: list[float] = []
+    plan: Plan | None = None
     for _ in range(runs):
         t0, c0 = time.perf_counter(), time.process_time()
         plan = solve_plan(course, PRESETS["typical"], settings=OcpSettings(**settings),
                           model=model, guess=guess)
         walls.append(time.perf_counter() - t0)
         cpus.append(time.process_time() - c0)
+    assert plan is not None, "runs >= 1"
     out.put({"walls": walls, "cpus": cpus, "wall_s": statistics.median(walls),
              "cpu_s": statistics.median(cpus), "iterations": plan.iterations,
              "n_nodes": plan.n_nodes, "status": f"{plan.status} ({plan.solver_status})",
@@ -135,23 +140,23 @@ def _solve_case(spec: tuple[str, float | None, str, int, dict, Plan | None],
              "plan": plan})
 
 
-def _baseline_case(spec: tuple[str, float], out: mp.Queue) -> None:
+def _baseline_case(spec: tuple[str, float], out: mp.Queue[dict[str, Any]]) -> None:
     name, piece_m = spec
     res = naive_baseline(piece(load_course(name), piece_m), PRESETS["typical"])
     out.put({**res, "peak_mb": peak_mb(), "load": load()})
 
 
-def run(target, spec) -> dict:
+def run(target: Callable[[Any, mp.Queue[dict[str, Any]]], None], spec: Any) -> dict[str, Any]:
     """Run one case in a fresh process (clean peak-RSS figure, no cached solver)."""
-    q: mp.Queue = mp.get_context("fork").Queue()
+    q: mp.Queue[dict[str, Any]] = mp.get_context("fork").Queue()
     p = mp.get_context("fork").Process(target=target, args=(spec, q))
     p.start()
-    res = q.get()
+    res: dict[str, Any] = q.get()
     p.join()
     return res
 
 
-def fmt(r: dict) -> str:
+def fmt(r: dict[str, Any]) -> str:
     runs = f" (runs {', '.join(f'{w:.1f}' for w in r['walls'])})" if "walls" in r else ""
     finish = f"finish {r['finish_s']:.2f} s, " if "finish_s" in r else ""
     return (f"wall {r['wall_s']:.2f} s{runs}, cpu {r['cpu_s']:.2f} s, "

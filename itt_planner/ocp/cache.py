@@ -94,5 +94,5 @@ def load_or_solve(course: Course, rider: Rider, conditions: Conditions = Conditi
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + f".{os.getpid()}.tmp")
         plan.save(tmp)
-        os.replace(tmp, path)
+        tmp.replace(path)
     return plan

@@ -64,5 +64,5 @@ def compiled(name: str, functions: list[ca.Function]) -> list[ca.Function]:
                 log.warning("compiling %s failed, kernels run interpreted: %s", name,
                             done.stderr[-500:])
                 return functions
-            os.replace(out, lib)  # atomic: concurrent processes never load a partial file
+            out.replace(lib)  # atomic: concurrent processes never load a partial file
     return [ca.external(fun.name(), str(lib)) for fun in functions]

@@ -49,7 +49,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -131,10 +131,12 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     cpu_start = time.process_time()
     start_m = 0.0 if start is None else start.s_m
     max_iter, seconds = settings.budget(model, course.length_m - start_m)
-    h_max = settings.h_max_m if model == "3d" else settings.h_max_1d_m
     v0 = start_speed(rider, conditions, settings)
     if start is not None:
         v0 = float(start.state.get("v", v0))
+    solve = _CourseSolve(course, rider, conditions, settings, model, guess, start, v0,
+                         _Budget(max_iter, seconds, cpu_start, settings.tol,
+                                 f"full-course {model} OCP on {course.name}"))
     cap = speed_spacing_cap(course, rider, conditions, model, start_m, v0)
     if model == "3d":
         # 3D: a priori no finer than h_min_m. At 0.06 m launch intervals the hairpin took
@@ -142,86 +144,12 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
         # after the verification; the 1D model (no roll mode) gains from the fine launch:
         # 24 instead of 98 iterations on the 3.9 km climb of bench_convergence.
         cap = np.maximum(cap, settings.h_min_m)
-    nodes = build_mesh(course, settings.h_min_m, h_max, settings.uniform_m, start_m=start_m,
-                       h_cap_m=cap)
-    prob = course_nlp(course, rider, conditions, settings, model, nodes, v0, start, guess)
+    nodes = solve.mesh(cap)
+    prob = solve.nlp(nodes, guess)
     t_build = time.perf_counter() - t_start
-    attempts: list[dict[str, Any]] = []
-
-    def left() -> tuple[int, float]:
-        used = sum(a["iterations"] for a in attempts)
-        return max_iter - used, seconds - (time.process_time() - cpu_start)
-
-    def run(strategy: str, pr: CourseNlp, w0: np.ndarray, share: float = 1.0,
-            bound_push: float = _BOUND_PUSH, acceptable_tol: float | None = None
-            ) -> SolveResult:
-        its, secs = left()
-        t0 = time.perf_counter()
-        solver = full_course_solver(pr.tr, max_iter=int(its * share),
-                                    max_cpu_time_s=secs * share, tol=settings.tol,
-                                    bound_push=bound_push, acceptable_tol=acceptable_tol)
-        res = solver.solve(w0, pr.p, pr.lbw, pr.ubw)
-        attempts.append({"strategy": strategy, "status": res.raw_status,
-                         "iterations": res.iterations, "n_nodes": len(pr.nodes),
-                         "time_s": round(time.perf_counter() - t0, 3)})
-        if not res.converged:
-            log.info("full-course %s OCP on %s, %s: %s after %d iterations", model,
-                     course.name, strategy, res.raw_status, res.iterations)
-        return res
-
-    def usable() -> bool:
-        its, secs = left()
-        return its > 10 and secs > 1.0
-
-    cold = prob.w_guess
-    # The first start gets `_FIRST_SHARE` of the budget, so that a restart has some left.
-    res = run("guess" if guess is not None else "cold", prob, cold, share=_FIRST_SHARE)
-    if res.gave_up_early and usable():
-        res = run("smaller bound push", prob, cold, bound_push=_RETRY_BOUND_PUSH,
-                  share=0.5)
-    if not res.converged and model == "1d" and usable():
-        finer = build_mesh(course, settings.h_min_m, h_max / 2, None if settings.uniform_m
-                           is None else settings.uniform_m / 2, start_m=start_m, h_cap_m=cap)
-        prob = course_nlp(course, rider, conditions, settings, model, finer, v0, start, guess)
-        res = run("finer mesh", prob, prob.w_guess, share=0.7)
-    if not res.converged and model == "3d" and guess is None and usable():
-        _, secs = left()
-        base = solve_plan(course, rider, conditions, dataclasses.replace(
-            settings, max_iter=None, max_cpu_time_s=min(secs / 3, settings.budget(
-                "1d", course.length_m - start_m)[1])), model="1d", start=start)
-        attempts.append({"strategy": "1d plan for a warm start", "status": base.solver_status,
-                         "iterations": base.iterations, "n_nodes": base.n_nodes,
-                         "time_s": round(base.solve_time_s, 3)})
-        if base.meta.get("success") and usable():
-            warm = course_nlp(course, rider, conditions, settings, model, nodes, v0, start, base)
-            res = run("warm from 1d", warm, warm.w_guess)
-    if res.status is PlanStatus.CAPPED and usable():
-        res = run("relaxed tolerance", prob, res.w, bound_push=_RETRY_BOUND_PUSH,
-                  acceptable_tol=_RELAXED_TOL)
-    plan = _finish(prob, res, course, rider, conditions, settings, attempts)
-    for _ in range(_REFINE_ROUNDS):
-        if plan.status != PlanStatus.INVALID.value or not usable():
-            break
-        cap = np.minimum(cap, plan_spacing_cap(course, plan, rider, conditions))
-        nodes = build_mesh(course, settings.h_min_m, h_max, settings.uniform_m,
-                           start_m=start_m, h_cap_m=cap)
-        if len(nodes) <= len(prob.nodes) * 1.001:
-            break  # the plan's speeds ask for no finer mesh: the mismatch is not the step
-        # 1D: from the default guess (or the caller's), not from the invalid plan, which
-        # rides on the artefact the finer mesh removes (bologna at 20 m). 3D: from the
-        # plan, whose mismatch was the launch (the hairpin from the default guess on the
-        # refined mesh: Restoration_Failed after 340 iterations; from the plan: 10).
-        prob = course_nlp(course, rider, conditions, settings, model, nodes, v0, start,
-                          guess if model == "1d" else plan)
-        res = run("refined where slow", prob, prob.w_guess)
-        plan = _finish(prob, res, course, rider, conditions, settings, attempts)
-    if plan.status == PlanStatus.INVALID.value and model == "1d" and usable():
-        # Still on an artefact: the whole mesh at half the spacing (bologna at 20 m).
-        finer = build_mesh(course, settings.h_min_m, h_max / 2, None if settings.uniform_m
-                           is None else settings.uniform_m / 2, start_m=start_m, h_cap_m=cap)
-        prob = course_nlp(course, rider, conditions, settings, model, finer, v0, start, guess)
-        res = run("finer mesh", prob, prob.w_guess)
-        plan = _finish(prob, res, course, rider, conditions, settings, attempts)
+    prob, res = solve.first(prob, cap)
+    plan = solve.finish(prob, res)
+    plan = solve.refine(plan, prob, cap)
     if plan.status != PlanStatus.CONVERGED.value:
         log.warning("full-course %s OCP on %s: %s (%s) after %d iterations", model, course.name,
                     plan.status, plan.solver_status, plan.iterations)
@@ -235,31 +163,160 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     return dataclasses.replace(plan, solve_time_s=time.perf_counter() - t_start, meta=meta)
 
 
-def _finish(prob: CourseNlp, res: SolveResult, course: Course, rider: Rider,
-            conditions: Conditions, settings: OcpSettings, attempts: list[dict[str, Any]]
-            ) -> Plan:
-    """The plan of one solver run, verified; its status and figures in `meta`."""
-    status, raw = res.status, res.raw_status
-    meta = {"course": course.name, "course_sha256": course.source_sha256,
-            "rider": asdict(rider), "conditions": asdict(conditions),
-            "settings": {k: (v.value if isinstance(v, WPrimeModel) else v)
-                         for k, v in asdict(settings).items()},
-            "objective": res.objective, "ipopt_status": raw, "attempts": list(attempts)}
-    # A run that raised has no multipliers: the plan's costate is then 0.
-    lam_g = res.lam_g if res.lam_g is not None else np.zeros(len(prob.tr.lbg))
-    plan = to_plan(prob.tr, res.w, prob.p, lam_g, prob.nodes, rider, status=raw,
-                   iterations=sum(a["iterations"] for a in attempts), solve_time_s=0.0,
-                   meta=meta)
-    check: Verification | None = None
-    if settings.verify and np.all(np.isfinite(res.w)):
-        check = verify_plan(plan, course, rider, conditions, model=prob.tr.model,
-                            substeps=mesh_substeps(plan.model, prob.nodes),
-                            wprime_model=settings.wprime_model)
-        if status is PlanStatus.CONVERGED and not check.verified:
-            status, raw = PlanStatus.INVALID, INVALID_RAW_STATUS
-            log.warning("plan on %s is not verified: %s mismatch %.1fx its tolerance at "
-                        "s = %.0f m", course.name, check.worst, check.worst_ratio,
-                        check.worst_s_m)
-    meta["verification"] = None if check is None else check.as_dict()
-    meta["success"] = status is PlanStatus.CONVERGED
-    return dataclasses.replace(plan, solver_status=raw, status=status.value, meta=meta)
+@dataclass
+class _Budget:
+    """The solver runs of one `solve_plan` call, sharing its iteration and CPU budget."""
+
+    max_iter: int
+    seconds: float
+    cpu_start: float
+    tol: float
+    label: str
+    attempts: list[dict[str, Any]] = field(default_factory=list)
+
+    def left(self) -> tuple[int, float]:
+        used = sum(a["iterations"] for a in self.attempts)
+        return self.max_iter - used, self.seconds - (time.process_time() - self.cpu_start)
+
+    def usable(self) -> bool:
+        """Enough left for another attempt."""
+        its, secs = self.left()
+        return its > 10 and secs > 1.0
+
+    def run(self, strategy: str, pr: CourseNlp, w0: np.ndarray, share: float = 1.0,
+            bound_push: float = _BOUND_PUSH, acceptable_tol: float | None = None
+            ) -> SolveResult:
+        """One solver run from `w0` with `share` of what is left of the budget."""
+        its, secs = self.left()
+        t0 = time.perf_counter()
+        solver = full_course_solver(pr.tr, max_iter=int(its * share),
+                                    max_cpu_time_s=secs * share, tol=self.tol,
+                                    bound_push=bound_push, acceptable_tol=acceptable_tol)
+        res = solver.solve(w0, pr.p, pr.lbw, pr.ubw)
+        self.attempts.append({"strategy": strategy, "status": res.raw_status,
+                              "iterations": res.iterations, "n_nodes": len(pr.nodes),
+                              "time_s": round(time.perf_counter() - t0, 3)})
+        if not res.converged:
+            log.info("%s, %s: %s after %d iterations", self.label, strategy, res.raw_status,
+                     res.iterations)
+        return res
+
+
+@dataclass
+class _CourseSolve:
+    """One `solve_plan` call: its inputs, and the restart strategies of the module
+    docstring in their order."""
+
+    course: Course
+    rider: Rider
+    conditions: Conditions
+    settings: OcpSettings
+    model: str
+    guess: Plan | None
+    start: Start | None
+    v0: float
+    budget: _Budget
+
+    @property
+    def start_m(self) -> float:
+        return 0.0 if self.start is None else self.start.s_m
+
+    def mesh(self, cap: np.ndarray, scale: float = 1.0) -> np.ndarray:
+        """The mesh with the spacing scaled by `scale` (0.5: half the spacing)."""
+        st = self.settings
+        h_max = st.h_max_m if self.model == "3d" else st.h_max_1d_m
+        uniform = None if st.uniform_m is None else st.uniform_m * scale
+        return build_mesh(self.course, st.h_min_m, h_max * scale, uniform,
+                          start_m=self.start_m, h_cap_m=cap)
+
+    def nlp(self, nodes: np.ndarray, guess: Plan | None) -> CourseNlp:
+        return course_nlp(self.course, self.rider, self.conditions, self.settings, self.model,
+                          nodes, self.v0, self.start, guess)
+
+    def first(self, prob: CourseNlp, cap: np.ndarray) -> tuple[CourseNlp, SolveResult]:
+        """The first start and the restarts before a verification (module docstring):
+        the NLP the result belongs to, and the result."""
+        run, usable = self.budget.run, self.budget.usable
+        cold = prob.w_guess
+        # The first start gets `_FIRST_SHARE` of the budget, so that a restart has some left.
+        res = run("guess" if self.guess is not None else "cold", prob, cold, share=_FIRST_SHARE)
+        if res.gave_up_early and usable():
+            res = run("smaller bound push", prob, cold, bound_push=_RETRY_BOUND_PUSH, share=0.5)
+        if not res.converged and self.model == "1d" and usable():
+            prob = self.nlp(self.mesh(cap, 0.5), self.guess)
+            res = run("finer mesh", prob, prob.w_guess, share=0.7)
+        if not res.converged and self.model == "3d" and self.guess is None and usable():
+            res = self._warm_from_1d(prob, res)
+        if res.status is PlanStatus.CAPPED and usable():
+            res = run("relaxed tolerance", prob, res.w, bound_push=_RETRY_BOUND_PUSH,
+                      acceptable_tol=_RELAXED_TOL)
+        return prob, res
+
+    def _warm_from_1d(self, prob: CourseNlp, res: SolveResult) -> SolveResult:
+        """Solve the 1D plan (a third of the CPU left at most) and start from it."""
+        _, secs = self.budget.left()
+        st, left_m = self.settings, self.course.length_m - self.start_m
+        base = solve_plan(self.course, self.rider, self.conditions, dataclasses.replace(
+            st, max_iter=None, max_cpu_time_s=min(secs / 3, st.budget("1d", left_m)[1])),
+            model="1d", start=self.start)
+        self.budget.attempts.append({
+            "strategy": "1d plan for a warm start", "status": base.solver_status,
+            "iterations": base.iterations, "n_nodes": base.n_nodes,
+            "time_s": round(base.solve_time_s, 3)})
+        if base.meta.get("success") and self.budget.usable():
+            warm = self.nlp(prob.nodes, base)
+            return self.budget.run("warm from 1d", warm, warm.w_guess)
+        return res
+
+    def refine(self, plan: Plan, prob: CourseNlp, cap: np.ndarray) -> Plan:
+        """Converged but not verified: refine where slow, then (1D) halve the spacing."""
+        usable = self.budget.usable
+        for _ in range(_REFINE_ROUNDS):
+            if plan.status != PlanStatus.INVALID.value or not usable():
+                break
+            cap = np.minimum(cap, plan_spacing_cap(self.course, plan, self.rider,
+                                                   self.conditions))
+            nodes = self.mesh(cap)
+            if len(nodes) <= len(prob.nodes) * 1.001:
+                break  # the plan's speeds ask for no finer mesh: the mismatch is not the step
+            # 1D: from the default guess (or the caller's), not from the invalid plan, which
+            # rides on the artefact the finer mesh removes (bologna at 20 m). 3D: from the
+            # plan, whose mismatch was the launch (the hairpin from the default guess on the
+            # refined mesh: Restoration_Failed after 340 iterations; from the plan: 10).
+            prob = self.nlp(nodes, self.guess if self.model == "1d" else plan)
+            plan = self.finish(prob, self.budget.run("refined where slow", prob, prob.w_guess))
+        if plan.status == PlanStatus.INVALID.value and self.model == "1d" and usable():
+            # Still on an artefact: the whole mesh at half the spacing (bologna at 20 m).
+            prob = self.nlp(self.mesh(cap, 0.5), self.guess)
+            plan = self.finish(prob, self.budget.run("finer mesh", prob, prob.w_guess))
+        return plan
+
+    def finish(self, prob: CourseNlp, res: SolveResult) -> Plan:
+        """The plan of one solver run, verified; its status and figures in `meta`."""
+        course, rider, conditions = self.course, self.rider, self.conditions
+        settings = self.settings
+        attempts = self.budget.attempts
+        status, raw = res.status, res.raw_status
+        meta = {"course": course.name, "course_sha256": course.source_sha256,
+                "rider": asdict(rider), "conditions": asdict(conditions),
+                "settings": {k: (v.value if isinstance(v, WPrimeModel) else v)
+                             for k, v in asdict(settings).items()},
+                "objective": res.objective, "ipopt_status": raw, "attempts": list(attempts)}
+        # A run that raised has no multipliers: the plan's costate is then 0.
+        lam_g = res.lam_g if res.lam_g is not None else np.zeros(len(prob.tr.lbg))
+        plan = to_plan(prob.tr, res.w, prob.p, lam_g, prob.nodes, rider, status=raw,
+                       iterations=sum(a["iterations"] for a in attempts), solve_time_s=0.0,
+                       meta=meta)
+        check: Verification | None = None
+        if settings.verify and np.all(np.isfinite(res.w)):
+            check = verify_plan(plan, course, rider, conditions, model=prob.tr.model,
+                                substeps=mesh_substeps(plan.model, prob.nodes),
+                                wprime_model=settings.wprime_model)
+            if status is PlanStatus.CONVERGED and not check.verified:
+                status, raw = PlanStatus.INVALID, INVALID_RAW_STATUS
+                log.warning("plan on %s is not verified: %s mismatch %.1fx its tolerance at "
+                            "s = %.0f m", course.name, check.worst, check.worst_ratio,
+                            check.worst_s_m)
+        meta["verification"] = None if check is None else check.as_dict()
+        meta["success"] = status is PlanStatus.CONVERGED
+        return dataclasses.replace(plan, solver_status=raw, status=status.value, meta=meta)

@@ -47,7 +47,7 @@ def target_spacing(course: Course, h_min_m: float, h_max_m: float, grade: float 
     ds = course.ds_m
     kappa = np.abs(course.kappa_per_m)
     dbeta = np.abs(np.gradient(course.beta_rad, course.s_m))
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", over="ignore"):  # straight or even: no limit (inf)
         h = np.minimum(_TURN_PER_INTERVAL_RAD / kappa, _SLOPE_CHANGE_PER_INTERVAL_RAD / dbeta)
     # Launch: the propulsive force P/v is largest at the slowest speeds (model.md C16 note).
     h = np.minimum(h, h_min_m + course.s_m * (h_max_m / launch_m))

@@ -38,6 +38,7 @@ them through its `grad_f`, `jac_g` and `hess_lag` options.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import casadi as ca
@@ -77,6 +78,17 @@ class Layout:
         """Where the acceleration bounds sit in g (after the path constraints)."""
         start = self.n_gap + self.n_path * self.n_nodes
         return slice(start, start + (self.n_intervals if self.accel else 0))
+
+    @property
+    def n_g(self) -> int:
+        """Number of constraints: gaps, path, acceleration bounds, soft terminal."""
+        return (self.n_gap + self.n_path * self.n_nodes
+                + (self.n_intervals if self.accel else 0) + (1 if self.ns else 0))
+
+    def g_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lbg, ubg): the continuity gaps are equalities, every other row is <= 0."""
+        return (np.concatenate([np.zeros(self.n_gap), np.full(self.n_g - self.n_gap, -np.inf)]),
+                np.zeros(self.n_g))
 
     @property
     def stage(self) -> int:
@@ -189,6 +201,108 @@ def _csc(n_rows: int, n_cols: int, rows: np.ndarray, cols: np.ndarray, src: np.n
     return ca.Sparsity(n_rows, n_cols, colind.tolist(), rows.tolist()), src.tolist()
 
 
+def _acceleration_bound(v_row: ca.MX, road: ca.MX, par: ca.MX, n: int
+                        ) -> tuple[ca.MX, ca.MX, ca.MX, ca.MX]:
+    """The acceleration bounds (module docstring): tyres + gravity + a tail wind's push.
+    Returns (g rows, v_{k+1}, v_k, ds_k)."""
+    q = {name: par[i] for i, name in enumerate(PARAMS)}
+    ds_k, beta_k = road[3, :], road[1, :]
+    wind_sq = q["wind_e"] ** 2 + q["wind_n"] ** 2
+    a_up = (q["mu_x"] * GRAVITY_MPS2 - GRAVITY_MPS2 * ca.sin(beta_k)
+            + q["k_v"] * wind_sq / q["mass"])
+    v_to, v_from = v_row[0, 1:], v_row[0, :n]
+    return ca.vec((v_to ** 2 - v_from ** 2) / (2 * ds_k) - a_up), v_to, v_from, ds_k
+
+
+def _triplets(trip: Sequence[tuple[np.ndarray, ...]]
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rows, cols, src = (np.concatenate([np.ravel(t[i]) for t in trip]) for i in range(3))
+    return rows, cols, src
+
+
+def _jacobian_pattern(lay: Layout, iv: int, ie: int, ng: int
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(row, column, source value) of every nonzero of the constraint Jacobian; the
+    values are `transcribe`'s: the stage blocks dF/dz, dpath/dx, then -1, then the
+    acceleration rows' d/dv_{k+1} and d/dv_k."""
+    nx, nz, n, n_path, st = lay.nx, lay.nx + lay.nu, lay.n_intervals, lay.n_path, lay.stage
+    ng_gap, ng_path = nx * n, n_path * (n + 1)
+    off_p, minus_one = nx * nz * n, nx * nz * n + n_path * nx * (n + 1)
+    off_acc = minus_one + 1
+    k, kn = np.arange(n), np.arange(n + 1)
+    kk: np.ndarray  # index grids of the triplets below (their shapes vary)
+    rr: np.ndarray
+    cc: np.ndarray
+    kk, rr, cc = np.meshgrid(k, np.arange(nx), np.arange(nz), indexing="ij")
+    trip = [(kk * nx + rr, kk * st + cc, kk * nx * nz + cc * nx + rr)]  # dF/dz
+    kk, rr = np.meshgrid(k, np.arange(nx), indexing="ij")
+    trip.append((kk * nx + rr, lay.x_index(kk + 1, rr), np.full(kk.shape, minus_one)))  # -I
+    kk, rr, cc = np.meshgrid(kn, np.arange(n_path), np.arange(nx), indexing="ij")
+    trip.append((ng_gap + kk * n_path + rr, lay.x_index(kk, cc),
+                 off_p + kk * n_path * nx + cc * n_path + rr))  # dpath/dx
+    if lay.accel:
+        row_acc = ng_gap + ng_path + k
+        trip.append((row_acc, lay.x_index(k + 1, iv), off_acc + k))  # d/dv_{k+1}
+        trip.append((row_acc, lay.x_index(k, iv), off_acc + n + k))  # d/dv_k
+    if lay.ns:
+        kk, rr = np.meshgrid(kn, np.arange(n_path), indexing="ij")
+        trip.append((ng_gap + kk * n_path + rr, np.minimum(kk, n - 1) * st + nz + rr,
+                     np.full(kk.shape, minus_one)))  # -slack
+        trip.append((np.array([ng - 1, ng - 1]), np.array([lay.x_index(n, ie), lay.n_var - 1]),
+                     np.array([minus_one, minus_one])))
+    return _triplets(trip)
+
+
+def _hessian_pattern(lay: Layout) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(row, column, source value) of the upper triangle of the Lagrangian's Hessian; the
+    values are `transcribe`'s: the stage blocks, the final node's block, then (soft) the
+    slacks' and the terminal slack's diagonals."""
+    nx, nz, n, st, ns = lay.nx, lay.nx + lay.nu, lay.n_intervals, lay.stage, lay.ns
+    k = np.arange(n)
+    off_n = nz * nz * n
+    r_up, c_up = np.triu_indices(nz)
+    kk = np.repeat(k, len(r_up))
+    trip = [(kk * st + np.tile(r_up, n), kk * st + np.tile(c_up, n),
+             kk * nz * nz + np.tile(c_up * nz + r_up, n))]
+    r_up, c_up = np.triu_indices(nx)
+    trip.append((lay.x_index(n, r_up), lay.x_index(n, c_up), off_n + c_up * nx + r_up))
+    if ns:
+        off_s = off_n + nx * nx
+        diag = (k[:, None] * st + nz + np.arange(ns)[None, :]).ravel()
+        trip.append((diag, diag, np.full(diag.shape, off_s)))
+        trip.append((np.array([lay.n_var - 1]),) * 2 + (np.array([off_s + 1]),))
+    return _triplets(trip)
+
+
+def _hessian(lay: Layout, kernels: tuple[ca.Function, ca.Function],
+             states: tuple[ca.MX, ca.MX, ca.MX], road: ca.MX, par: ca.MX, term: ca.MX,
+             lam_f: ca.MX, lam_g: ca.MX, ds_k: ca.MX, slack_weight: float) -> ca.MX:
+    """The upper triangle of the Lagrangian's Hessian (sparse MX): the stage kernels'
+    dense blocks (`hk_k`, `hn_k`) scattered into `_hessian_pattern`. `states`: the node
+    states, the controls and the last node's states."""
+    hk_k, hn_k = kernels
+    xs, us, x_last = states
+    nx, n, n_path = lay.nx, lay.n_intervals, lay.n_path
+    ng_gap, ng_path = nx * n, n_path * (n + 1)
+    lam_gap = ca.reshape(lam_g[:ng_gap], nx, n)
+    mu = ca.reshape(lam_g[ng_gap: ng_gap + ng_path], n_path, n + 1)
+    # d^2/dv^2 of sum_k nu_k (v_{k+1}^2 - v_k^2) / (2 ds_k): node k gets
+    # (nu_{k-1}/ds_{k-1} - nu_k/ds_k) / 2 as the coefficient of v_k^2.
+    if lay.accel:
+        nu_ds = ca.transpose(lam_g[ng_gap + ng_path: ng_gap + ng_path + n]) / (2 * ds_k)
+        nu_node = ca.horzcat(0, nu_ds) - ca.horzcat(nu_ds, 0)
+    else:
+        nu_node = ca.MX.zeros(1, n + 1)
+    h_stage = hk_k.map(n)(xs[:, :n], us, road, par, lam_f, lam_gap, mu[:, :n],
+                          nu_node[0, :n])
+    h_final = hn_k(x_last, par, lam_f, mu[:, n], term[1], term[2], nu_node[0, n])
+    hvals = [ca.vec(h_stage), ca.vec(h_final)]
+    if lay.ns:
+        hvals += [2 * lam_f * slack_weight, 2 * lam_f * _TERMINAL_SLACK_FACTOR * slack_weight]
+    sp_h, src_h = _csc(lay.n_var, lay.n_var, *_hessian_pattern(lay))
+    return ca.MX(sp_h, ca.vertcat(*hvals)[src_h])
+
+
 def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
                soft: bool = False, slack_weight: float = 100.0,
                compile_c: bool = True, accel_bound: bool = True) -> Transcription:
@@ -224,9 +338,8 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     road = ca.reshape(p[: len(ROAD) * n], len(ROAD), n)
     par = p[len(ROAD) * n: len(ROAD) * n + len(PARAMS)]
     term = p[len(ROAD) * n + len(PARAMS):] if soft else ca.MX.zeros(len(TERMINAL))
-    ng_gap, ng_path = nx * n, n_path * (n + 1)
     ng_acc = n if accel_bound else 0
-    ng = ng_gap + ng_path + ng_acc + (1 if soft else 0)
+    ng = lay.n_g
     lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", ng)
 
     # ---- objective and constraints ------------------------------------------------------
@@ -234,15 +347,7 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     path, path_jac = p_k.map(n + 1)(xs, par)
     f = ca.sum2(dj)
     g_gap = ca.vec(x_next - xs[:, 1:])
-    # Acceleration bounds (module docstring): tyres + gravity + a tail wind's push.
-    q = {name: par[i] for i, name in enumerate(PARAMS)}
-    ds_k, beta_k = road[3, :], road[1, :]
-    wind_sq = q["wind_e"] ** 2 + q["wind_n"] ** 2
-    a_up = (q["mu_x"] * GRAVITY_MPS2 - GRAVITY_MPS2 * ca.sin(beta_k)
-            + q["k_v"] * wind_sq / q["mass"])
-    v_row = xs[iv, :]
-    v_to, v_from = v_row[0, 1:], v_row[0, :n]
-    g_acc = ca.vec((v_to ** 2 - v_from ** 2) / (2 * ds_k) - a_up)
+    g_acc, v_to, v_from, ds_k = _acceleration_bound(xs[iv, :], road, par, n)
     if soft:
         slacks = body[nz:, :]
         e_slack = w[-1]
@@ -254,8 +359,6 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
         g = ca.vertcat(g_gap, ca.vec(path), g_acc[:ng_acc], term[0] - x_last[ie] - e_slack)
     else:
         g = ca.vertcat(g_gap, ca.vec(path), g_acc[:ng_acc])
-    lbg = np.concatenate([np.zeros(ng_gap), np.full(ng - ng_gap, -np.inf)])
-    ubg = np.zeros(ng)
 
     # ---- gradient of f ----------------------------------------------------------------------
     _, _, jac_z, grad_z = jf_k.map(n)(xs[:, :n], us, road, par)
@@ -267,66 +370,14 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     grad_f = ca.densify(ca.vertcat(ca.vec(ca.vertcat(*stage_grad)), *tail))
 
     # ---- Jacobian of g: dense stage blocks scattered into the banded pattern -------------
-    k = np.arange(n)
     values = ca.vertcat(ca.vec(jac_z), ca.vec(path_jac), ca.MX(-1),
                         ca.vec(v_to / ds_k), ca.vec(-v_from / ds_k))
-    off_p, minus_one = nx * nz * n, nx * nz * n + n_path * nx * (n + 1)
-    off_acc = minus_one + 1
-    kk: np.ndarray  # index grids of the triplets below (their shapes vary)
-    rr: np.ndarray
-    cc: np.ndarray
-    kk, rr, cc = np.meshgrid(k, np.arange(nx), np.arange(nz), indexing="ij")
-    trip = [(kk * nx + rr, kk * st + cc, kk * nx * nz + cc * nx + rr)]  # dF/dz
-    kk, rr = np.meshgrid(k, np.arange(nx), indexing="ij")
-    trip.append((kk * nx + rr, lay.x_index(kk + 1, rr), np.full(kk.shape, minus_one)))  # -I
-    kn = np.arange(n + 1)
-    kk, rr, cc = np.meshgrid(kn, np.arange(n_path), np.arange(nx), indexing="ij")
-    trip.append((ng_gap + kk * n_path + rr, lay.x_index(kk, cc),
-                 off_p + kk * n_path * nx + cc * n_path + rr))  # dpath/dx
-    if accel_bound:
-        row_acc = ng_gap + ng_path + k
-        trip.append((row_acc, lay.x_index(k + 1, iv), off_acc + k))  # d/dv_{k+1}
-        trip.append((row_acc, lay.x_index(k, iv), off_acc + n + k))  # d/dv_k
-    if soft:
-        kk, rr = np.meshgrid(kn, np.arange(n_path), indexing="ij")
-        trip.append((ng_gap + kk * n_path + rr, np.minimum(kk, n - 1) * st + nz + rr,
-                     np.full(kk.shape, minus_one)))  # -slack
-        trip.append((np.array([ng - 1, ng - 1]), np.array([lay.x_index(n, ie), lay.n_var - 1]),
-                     np.array([minus_one, minus_one])))
-    rows, cols, src = (np.concatenate([np.ravel(t[i]) for t in trip]) for i in range(3))
-    sp_j, src_j = _csc(ng, lay.n_var, rows, cols, src)
+    sp_j, src_j = _csc(ng, lay.n_var, *_jacobian_pattern(lay, iv, ie, ng))
     jac_g = ca.MX(sp_j, values[src_j])
 
     # ---- Hessian of the Lagrangian: block diagonal, upper triangle -------------------------
-    lam_gap = ca.reshape(lam_g[:ng_gap], nx, n)
-    mu = ca.reshape(lam_g[ng_gap: ng_gap + ng_path], n_path, n + 1)
-    # d^2/dv^2 of sum_k nu_k (v_{k+1}^2 - v_k^2) / (2 ds_k): node k gets
-    # (nu_{k-1}/ds_{k-1} - nu_k/ds_k) / 2 as the coefficient of v_k^2.
-    if accel_bound:
-        nu_ds = ca.transpose(lam_g[ng_gap + ng_path: ng_gap + ng_path + ng_acc]) / (2 * ds_k)
-        nu_node = ca.horzcat(0, nu_ds) - ca.horzcat(nu_ds, 0)
-    else:
-        nu_node = ca.MX.zeros(1, n + 1)
-    h_stage = hk_k.map(n)(xs[:, :n], us, road, par, lam_f, lam_gap, mu[:, :n],
-                          nu_node[0, :n])
-    h_final = hn_k(x_last, par, lam_f, mu[:, n], term[1], term[2], nu_node[0, n])
-    hvals = [ca.vec(h_stage), ca.vec(h_final)]
-    off_n = nz * nz * n
-    r_up, c_up = np.triu_indices(nz)
-    kk = np.repeat(k, len(r_up))
-    trip = [(kk * st + np.tile(r_up, n), kk * st + np.tile(c_up, n),
-             kk * nz * nz + np.tile(c_up * nz + r_up, n))]
-    r_up, c_up = np.triu_indices(nx)
-    trip.append((lay.x_index(n, r_up), lay.x_index(n, c_up), off_n + c_up * nx + r_up))
-    if soft:
-        off_s = off_n + nx * nx
-        hvals += [2 * lam_f * slack_weight, 2 * lam_f * _TERMINAL_SLACK_FACTOR * slack_weight]
-        diag = (k[:, None] * st + nz + np.arange(ns)[None, :]).ravel()
-        trip.append((diag, diag, np.full(diag.shape, off_s)))
-        trip.append((np.array([lay.n_var - 1]),) * 2 + (np.array([off_s + 1]),))
-    rows, cols, src = (np.concatenate([np.ravel(t[i]) for t in trip]) for i in range(3))
-    sp_h, src_h = _csc(lay.n_var, lay.n_var, rows, cols, src)
-    hess = ca.MX(sp_h, ca.vertcat(*hvals)[src_h])
+    hess = _hessian(lay, (hk_k, hn_k), (xs, us, x_last), road, par, term, lam_f, lam_g,
+                    ds_k, slack_weight)
 
     derivatives = {
         "grad_f": ca.Function("grad_f", [w, p], [f, grad_f], ["x", "p"], ["f", "grad_f_x"]),
@@ -336,5 +387,5 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     }
     evaluate = ca.Function("evaluate", [w, p], [dt, model.outputs.map(n + 1)(xs, par)],
                            ["w", "p"], ["dt", "y"])
-    return Transcription(model, lay, {"x": w, "p": p, "f": f, "g": g}, derivatives, lbg, ubg,
-                         evaluate)
+    return Transcription(model, lay, {"x": w, "p": p, "f": f, "g": g}, derivatives,
+                         *lay.g_bounds(), evaluate)

@@ -9,6 +9,7 @@ import time
 from collections.abc import Iterator
 
 import pytest
+from support.courses import hairpin
 
 from itt_planner.errors import SolveError
 from itt_planner.live.course_replan import CourseReplanner, CourseReplanSettings, start_from
@@ -21,7 +22,6 @@ from itt_planner.ocp.horizon import HorizonPlanner
 from itt_planner.ocp.horizon_settings import HorizonSettings
 from itt_planner.ocp.plan import Plan
 from itt_planner.ocp.solver import PlanStatus
-from support.courses import hairpin
 
 COURSE = hairpin(straight_m=300.0)
 RIDER = PRESETS["paper"]

@@ -27,8 +27,8 @@ def test_steady_speed_closed_form_zeroes_acceleration(grade: float) -> None:
     # Martin et al. (1998) balance: P = v (m g (crr cos b + sin b) + k_v v^2)
     b = math.atan(grade)
     k_v = 0.5 * 1.23 * rider.drag_area_m2
-    assert power == pytest.approx(v * (rider.mass_kg * 9.81 * (rider.crr * math.cos(b) + math.sin(b))
-                                       + k_v * v * v), rel=1e-9)
+    resist = rider.mass_kg * 9.81 * (rider.crr * math.cos(b) + math.sin(b))
+    assert power == pytest.approx(v * (resist + k_v * v * v), rel=1e-9)
     par = ModelParams(rider, Conditions()).vector()
     road = np.array([0.0, b, 0.0, 1.0])
     for model, x in ((build_3d(), _x3d(v, power / rider.max_power_w)),

@@ -7,6 +7,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from support.courses import hairpin
 
 from itt_planner.course.geometry import Course
 from itt_planner.course.loader import load_course
@@ -18,7 +19,6 @@ from itt_planner.ocp.horizon import HorizonPlanner
 from itt_planner.ocp.horizon_settings import HorizonSettings, HorizonSolution
 from itt_planner.ocp.plan import Plan
 from itt_planner.ocp.solver import PlanStatus
-from support.courses import hairpin
 
 COURSE = hairpin(straight_m=600.0)
 
@@ -88,7 +88,8 @@ def friction_use(sol: HorizonSolution, rider: Rider) -> np.ndarray:
     g, mu = GRAVITY_MPS2, 1.0  # Conditions() default grip: mu_x = mu_y = 1
     a_x = sol.power_w / (rider.mass_kg * sol.v_mps)
     a_y = g * np.tan(np.abs(sol.phi_rad))
-    return (a_x / (mu * g)) ** 2 + (a_y / (mu * g)) ** 2
+    use: np.ndarray = (a_x / (mu * g)) ** 2 + (a_y / (mu * g)) ** 2
+    return use
 
 
 def test_usable_replans_on_a_technical_descent() -> None:

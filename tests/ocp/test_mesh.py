@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from support.courses import hairpin, straight
 
 from itt_planner.course.builder import build_course
 from itt_planner.course.geometry import Course
 from itt_planner.ocp.mesh import build_mesh, road_data, speed_spacing_m, target_spacing
-from support.courses import hairpin, straight
 
 #: A flat straight, a 15 m hairpin, a 6 % climb and a descent: every rule of the mesh.
 ROAD = build_course({"name": "mesh-test", "segments": [

@@ -1,8 +1,8 @@
 """Full-course OCP: physics sanity on a hairpin course, consistency, verona-like, riders,
 bad inputs, caching, and the `plan` / `compare-riders` CLI end to end.
 
-The mesh study and the 3D three-rider comparison on verona-like are `slow` (minutes);
-bench/bench_ocp.py measures them too.
+The 3D plan, the mesh study and the 3D three-rider comparison on verona-like are `slow`
+(minutes); bench/bench_ocp.py measures them too.
 """
 
 from __future__ import annotations
@@ -10,11 +10,13 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 import yaml
-from typer.testing import CliRunner
+from support.courses import hairpin, straight
+from typer.testing import CliRunner, Result
 
 from itt_planner.cli import app
 from itt_planner.cli.plan import EXIT_NOT_CONVERGED
@@ -31,7 +33,6 @@ from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.guess import plan_guess
 from itt_planner.ocp.plan import Plan, corner_table, splits
 from itt_planner.ocp.solver import PlanStatus
-from support.courses import hairpin, straight
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +57,7 @@ def test_hairpin_physics(hairpin_plan: Plan) -> None:
     assert np.abs(p.n_m[inside]).max() > 2.0  # cuts the apex
 
 
-def test_corner_table_and_splits(hairpin_plan: Plan, tmp_path) -> None:
+def test_corner_table_and_splits(hairpin_plan: Plan, tmp_path: Path) -> None:
     rows = corner_table(hairpin_plan, hairpin().corners)
     assert len(rows) == 1 and rows[0].braking_s_m is not None
     assert rows[0].apex_speed_mps < rows[0].entry_speed_mps
@@ -183,11 +184,19 @@ def verona() -> Course:
 
 
 @pytest.fixture(scope="module")
-def verona_plans(verona: Course) -> dict[str, Plan]:
-    """The typical rider on verona-like with both models (one 3D solve: the costly one)."""
-    return {m: solve_plan(verona, PRESETS["typical"], model=m) for m in ("3d", "1d")}
+def verona_plan_1d(verona: Course) -> Plan:
+    """The typical rider on verona-like, 1D (a few seconds)."""
+    return solve_plan(verona, PRESETS["typical"], model="1d")
 
 
+@pytest.fixture(scope="module")
+def verona_plans(verona: Course, verona_plan_1d: Plan) -> dict[str, Plan]:
+    """The typical rider on verona-like with both models (the 3D solve: 1.5-4 min on 2
+    cores, hence only in `slow` tests)."""
+    return {"3d": solve_plan(verona, PRESETS["typical"], model="3d"), "1d": verona_plan_1d}
+
+
+@pytest.mark.slow
 def test_verona_1d_is_faster_and_overspeeds_the_hairpins(verona: Course,
                                                          verona_plans: dict[str, Plan]) -> None:
     p3, p1 = verona_plans["3d"], verona_plans["1d"]
@@ -212,7 +221,7 @@ def _section_time(plan: Plan, s0: float, s1: float) -> float:
     return float(plan.at("t_s", s1) - plan.at("t_s", s0))
 
 
-def test_riders_on_verona_1d(verona: Course, verona_plans: dict[str, Plan]) -> None:
+def test_riders_on_verona_1d(verona: Course, verona_plan_1d: Plan) -> None:
     """Specialist fastest, climber slowest; where the climber loses most (see below).
 
     model.md section 7 gives the "weak climber" the lowest power-to-mass (4.5 W/kg vs 5.0
@@ -224,7 +233,7 @@ def test_riders_on_verona_1d(verona: Course, verona_plans: dict[str, Plan]) -> N
     on the climb exceeds the loss elsewhere and is at most the steady-state (CP-only)
     ratio, which equal W' narrows.
     """
-    plans = {"typical": verona_plans["1d"]}
+    plans = {"typical": verona_plan_1d}
     plans |= {r: solve_plan(verona, PRESETS[r], model="1d") for r in ("specialist", "climber")}
     assert all(p.meta["success"] for p in plans.values())
     t = {r: p.finish_time_s for r, p in plans.items()}
@@ -287,12 +296,12 @@ PLAN_KEYS = {"finish_time_s", "mean_power_w", "w_prime_end_j", "max_lean_deg", "
 runner = CliRunner()
 
 
-def _yaml(path: Path, data: dict) -> Path:
+def _yaml(path: Path, data: dict[str, Any]) -> Path:
     path.write_text(yaml.safe_dump(data))
     return path
 
 
-def _no_traceback(result) -> None:
+def _no_traceback(result: Result) -> None:
     assert result.exception is None or isinstance(result.exception, SystemExit), result.output
     assert "Traceback" not in result.output
 

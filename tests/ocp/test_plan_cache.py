@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from support.courses import straight
 
 from itt_planner.course.geometry import Course
 from itt_planner.model.conditions import Conditions
@@ -20,7 +21,6 @@ from itt_planner.ocp.cache import load_or_solve, plan_key
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.ocp.plan import PLAN_ARRAYS, Plan
-from support.courses import straight
 
 COURSE = straight(600.0)
 RIDER = PRESETS["paper"]

@@ -9,6 +9,7 @@ property runs by default; the 3D one is `slow`.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -28,7 +29,7 @@ riders = st.builds(
 
 
 @st.composite
-def segments(draw: st.DrawFn) -> dict:
+def segments(draw: st.DrawFn) -> dict[str, Any]:
     grade = draw(st.floats(-20, 20))
     kind = draw(st.sampled_from(["straight", "straight", "arc", "clothoid"]))
     if kind == "straight":
@@ -43,7 +44,7 @@ def segments(draw: st.DrawFn) -> dict:
 
 
 @st.composite
-def courses(draw: st.DrawFn) -> dict:
+def courses(draw: st.DrawFn) -> dict[str, Any]:
     segs = draw(st.lists(segments(), min_size=1, max_size=5))
     if draw(st.booleans()):  # a loop: four 90 deg bends close the lap
         side = draw(st.floats(50, 300))
@@ -58,7 +59,7 @@ def courses(draw: st.DrawFn) -> dict:
     return {"name": "prop", "segments": segs}
 
 
-def _check(spec: dict, rider: Rider, model: str) -> None:
+def _check(spec: dict[str, Any], rider: Rider, model: str) -> None:
     try:
         course = build_course(spec)
         plan = solve_plan(course, rider, model=model)
@@ -76,12 +77,12 @@ def _check(spec: dict, rider: Rider, model: str) -> None:
 
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(spec=courses(), rider=riders)
-def test_any_built_course_1d(spec: dict, rider: Rider) -> None:
+def test_any_built_course_1d(spec: dict[str, Any], rider: Rider) -> None:
     _check(spec, rider, "1d")
 
 
 @pytest.mark.slow
 @settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(spec=courses(), rider=riders)
-def test_any_built_course_3d(spec: dict, rider: Rider) -> None:
+def test_any_built_course_3d(spec: dict[str, Any], rider: Rider) -> None:
     _check(spec, rider, "3d")

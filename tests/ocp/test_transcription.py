@@ -7,6 +7,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 import pytest
+from support.courses import hairpin
 
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.dynamics import SpatialModel, build_1d, build_3d_steady_lean, rk4_step
@@ -15,7 +16,6 @@ from itt_planner.model.rider import PRESETS
 from itt_planner.ocp.guess import initial_guess
 from itt_planner.ocp.mesh import build_mesh, road_data
 from itt_planner.ocp.transcription import TERMINAL, Layout, Transcription, transcribe
-from support.courses import hairpin
 
 RIDER = PRESETS["paper"]
 COURSE = hairpin(straight_m=60.0)
