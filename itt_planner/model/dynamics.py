@@ -6,7 +6,7 @@ Two models share one parameter vector and one interface:
   `u = [u_delta, u_W]` (E1-E9, C15, C16);
 - the 1D model (model.md section 6), states `x = [v, W_n, E_n]`, control `u = [u_W]`.
 - the steady-lean 3D model of the receding horizon (`build_3d_steady_lean`): roll
-  E4-E5 at equilibrium, states `x = [n, alpha, v, W_n, delta_n, E_n]` (why: horizon.py).
+  E4-E5 at equilibrium, states `x = [n, alpha, v, W_n, delta_n, E_n]` (why: `ocp.horizon`).
 
 Everything rider- or weather-specific (mass, drag, grip, wind, ...) is a symbolic
 parameter (`params.ModelParams.vector()`), not a constant, so the compiled integrator of

@@ -3,7 +3,7 @@
 The full-course problem (`course_nlp`) and the receding horizon (`horizon`) bound the
 same states the same way; what differs is passed in: the node positions, the initial
 state the first node is fixed at, the speed cap (the horizon adds the plan's corner
-speeds, `horizon_start.corner_speed_cap`) and the W' the finish must keep (C12, the
+speeds, `horizon_window.corner_speed_cap`) and the W' the finish must keep (C12, the
 full-course problem's `e_final_min`). A state a model does not have is skipped (`phi`
 exists in the full 3D model only, the lateral states not in the 1D model).
 """

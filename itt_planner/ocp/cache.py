@@ -76,7 +76,7 @@ def load_or_solve(course: Course, rider: Rider, conditions: Conditions = Conditi
     (written by other code) is ignored.
 
     Raises:
-        SolveError: unusable input (see `ocp.solve_plan`).
+        SolveError: unusable input (see `course_problem.solve_plan`).
     """
     key = plan_key(course, rider, conditions, settings, model)
     path = Path(cache_dir) / f"{course.name}_{model}_{key}{PLAN_SUFFIX}"
