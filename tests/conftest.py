@@ -1,7 +1,9 @@
-"""Shared fixtures: real data (in the repo or beside the checkout), small synthetic courses."""
+"""Shared fixtures: real data (in the repo or beside the checkout) and the courses fitted to
+it, ROS 2 environments, and the hairpin course and plan (support.hairpin_fixtures)."""
 
 from __future__ import annotations
 
+import functools
 import os
 import random
 from collections.abc import Callable
@@ -11,6 +13,9 @@ import pytest
 from support.real_data import data_path
 
 from itt_msgs_py.dds_env import CONFLICTING_VARS, localhost_env, ros_unavailable_reason
+from itt_planner.course.geometry import COURSE_SUFFIX, Course
+from itt_planner.course.loader import load_course
+from itt_planner.course.track_files import file_sha256
 
 #: The hairpin course and its 3D plan (`course`, `plan`) for the closed-loop tests.
 pytest_plugins = ["support.hairpin_fixtures"]
@@ -22,6 +27,30 @@ def data_file() -> Callable[[str], Path]:
     `tests/data/` first (the MIT rides the repo ships), then `../shared/data/`, else the
     test is skipped with a reason naming the file (unlicensed, lives only beside CI)."""
     return data_path
+
+
+@pytest.fixture(scope="session")
+def real_course(tmp_path_factory: pytest.TempPathFactory) -> Callable[[str], Course]:
+    """The course fitted to a real file (`load_course`, default options), by its path under
+    `../shared/data` (skips like `data_file`). Fitted once per run: saved as .course.npz
+    where the xdist workers of this run share it (a 100 km ride takes seconds to fit)."""
+    base = tmp_path_factory.getbasetemp()
+    # Under xdist each worker has its own base inside the run's; never across runs.
+    cache = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "real_courses"
+    cache.mkdir(exist_ok=True)
+
+    @functools.cache
+    def fitted(relpath: str) -> Course:
+        src = data_path(relpath)
+        saved = cache / f"{src.name}-{file_sha256(src)[:16]}{COURSE_SUFFIX}"
+        if saved.is_file():
+            return Course.load(saved)
+        partial = saved.with_name(f".{saved.name}.{os.getpid()}")
+        load_course(src).save(partial)
+        partial.replace(saved)  # atomic: another worker reads a whole file or none
+        return Course.load(saved)  # the same object whoever fitted it
+
+    return fitted
 
 
 @pytest.fixture(scope="session")

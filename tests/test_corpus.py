@@ -13,6 +13,7 @@ replay -> report on the whole course; the plans must converge (exit 0).
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -44,13 +45,24 @@ def run(*args: str) -> dict[str, Any]:
 
 
 @pytest.mark.parametrize("rel", CORPUS)
-def test_course_and_short_1d_plan(rel: str, tmp_path: Path) -> None:
+def test_course_and_short_1d_plan(rel: str, real_course: Callable[[str], Course],
+                                  tmp_path: Path) -> None:
+    """Every real file: the whole course (fitted once per run for every test that needs
+    it), its arrays and its `course info`; through the CLI, its first 2 km fitted and a
+    converged 1D plan on them (the CLI's fit of the whole file: `test_full_pipeline`)."""
     src = data_path(rel)
-    info = run("course", "info", str(src))
+    course = real_course(rel)
+    full = course.save(tmp_path / "full.course.npz")
+    assert np.all(np.abs(np.tan(course.beta_rad)) <= 0.25)
+    assert np.all(np.isfinite(course.kappa_per_m))
+    assert np.all(np.diff(course.s_m) > 0)
+    info = run("course", "info", str(full))
     assert info["_exit"] == 0, info
     assert info["length_m"] > 10_000 and info["n_corners"] == len(info["corners"])
     assert info["min_grade"] >= -0.25 and info["max_grade"] <= 0.25
-    # No turn a bike cannot ride (real hairpins turn ~180 deg, so the angle says nothing).
+    # No turn a bike cannot ride (real hairpins turn ~180 deg, so the angle says nothing):
+    # a ride that leaves and returns along the same road, or circles at the finish, must
+    # not be closed into a loop with a U-turn at the seam.
     assert all(c["min_radius_m"] > 5.0 for c in info["corners"]), info["corners"]
     assert {"trim", "elevation", "road_width"} <= set(info["build"])
     piece = tmp_path / "piece.course.npz"

@@ -17,7 +17,6 @@ from itt_planner.calibration import CalibrationError, CalibrationOptions, calibr
 from itt_planner.calibration.validate import validate_ride
 from itt_planner.cli import app
 from itt_planner.course.geometry import COURSE_SUFFIX, Course
-from itt_planner.course.loader import load_course
 from itt_planner.model.rider import Rider
 
 ST_JOHNS = "rides/edge810_vector_stjohns_2013.fit"
@@ -27,11 +26,12 @@ StJohns = tuple[Path, Course, Rider, Path]
 
 
 @pytest.fixture(scope="module")
-def st_johns(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Course, Rider, Path]:
+def st_johns(tmp_path_factory: pytest.TempPathFactory,
+             real_course: Callable[[str], Course]) -> StJohns:
     """The St John's ride (MIT, in tests/data/), its course, its calibrated rider and the
     course saved (`--course` of the CLI tests: the ride's track is fitted once)."""
     path = data_path(ST_JOHNS)  # not the data_file fixture: that one is function-scoped
-    course = load_course(path)
+    course = real_course(ST_JOHNS)
     saved = course.save(tmp_path_factory.mktemp("st_johns") / f"st_johns{COURSE_SUFFIX}")
     return path, course, calibrate([path], CalibrationOptions(), courses=[course]).rider, saved
 

@@ -11,6 +11,7 @@ import pytest
 from support.synthetic_track import bar_passes, fit_errors
 
 from itt_planner.course.fit import fit_course_file
+from itt_planner.course.geometry import Course
 from itt_planner.errors import CourseError
 
 SEEDS = range(20)
@@ -57,8 +58,8 @@ def test_synthetic_track_over_seeds_0_to_19() -> None:
     assert all(counts[k] >= v for k, v in floors.items()), counts
 
 
-def test_tokyo_lap_is_a_closed_loop_of_22_1_km(data_file: Callable[[str], Path]) -> None:
-    course = fit_course_file(data_file("courses/tokyo2020_olympic_itt_lap.csv"))
+def test_tokyo_lap_is_a_closed_loop_of_22_1_km(real_course: Callable[[str], Course]) -> None:
+    course = real_course("courses/tokyo2020_olympic_itt_lap.csv")
     assert course.closed_loop
     assert course.length_m == pytest.approx(22_100.0, rel=0.01)
     tight = [c for c in course.corners if c.min_radius_m < 50.0]
@@ -70,25 +71,13 @@ def test_tokyo_lap_is_a_closed_loop_of_22_1_km(data_file: Callable[[str], Path])
     assert all(c.min_radius_m > 5.0 for c in course.corners)
 
 
-@pytest.mark.parametrize("name", ["edge810_vector_stjohns_2013.fit", "edge1000_ardennes_2019.fit",
-                                  "sauerland_2025.fit", "elemnt_shanghai_2019_stopgo.fit",
-                                  "zwift_bologna_tt_virtual.tcx"])
-def test_every_ride_gives_plausible_grades(data_file: Callable[[str], Path], name: str) -> None:
-    course = fit_course_file(data_file(f"rides/{name}"))
-    grade = np.tan(course.beta_rad)
-    assert np.all(np.abs(grade) <= 0.25), (grade.min(), grade.max())
-    assert course.length_m > 10_000
-    assert np.all(np.isfinite(course.kappa_per_m))
-    assert np.all(np.diff(course.s_m) > 0)
-    # No turn-around a bike cannot ride: a ride that leaves and returns along the same road,
-    # or circles at the finish, must not be closed into a loop with a U-turn at the seam.
-    assert all(c.min_radius_m > 5.0 for c in course.corners), min(
-        c.min_radius_m for c in course.corners)
+# Every real ride's fitted course (grades, curvature, corners) is checked once, through the
+# CLI, in tests/test_corpus.py.
 
 
 def test_sauerland_pauses_and_jumps_leave_no_spurious_geometry(
-        data_file: Callable[[str], Path]) -> None:
-    course = fit_course_file(data_file("rides/sauerland_2025.fit"))
+        real_course: Callable[[str], Course]) -> None:
+    course = real_course("rides/sauerland_2025.fit")
     assert course.length_m == pytest.approx(99_000.0, rel=0.03)
     assert not course.closed_loop
 
