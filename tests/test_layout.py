@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import ast
 import functools
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -126,3 +127,28 @@ def test_package_exports_its_public_names(package: str) -> None:
     assert len(set(exported)) == len(exported), f"{package}: __all__ repeats a name"
     missing = sorted(set(exported) - bound)
     assert not missing, f"{package}: __all__ names what it does not bind: {missing}"
+
+
+def _frozen_dataclasses(path: Path) -> set[str]:
+    """Classes of a module decorated `@dataclass(frozen=True)`."""
+    out = set()
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.ClassDef):
+            for deco in node.decorator_list:
+                if (isinstance(deco, ast.Call) and getattr(deco.func, "id", None) == "dataclass"
+                        and any(k.arg == "frozen" and getattr(k.value, "value", False)
+                                for k in deco.keywords)):
+                    out.add(node.name)
+    return out
+
+
+def test_immutable_defaults_in_the_lint_config_are_frozen_dataclasses() -> None:
+    """ruff lets these be built once as argument defaults (bugbear's immutable calls): each
+    must still exist at that path and be frozen (a class that moved or thawed fails here)."""
+    config = tomllib.loads((PKG.parent / "pyproject.toml").read_text())
+    calls = config["tool"]["ruff"]["lint"]["flake8-bugbear"]["extend-immutable-calls"]
+    ours = [c for c in calls if c.startswith("itt_planner.")]
+    assert ours
+    wrong = [c for c in ours if c.rpartition(".")[0] not in MODULES
+             or c.rpartition(".")[2] not in _frozen_dataclasses(MODULES[c.rpartition(".")[0]])]
+    assert not wrong, f"not a frozen dataclass at that path: {wrong}"
