@@ -22,26 +22,22 @@ import json
 import os
 import random
 import statistics
-import sys
 import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))  # the test ride of the ROS tests (ros_support)
-
-from ros_support import RIDE_T0_S, RIDER, Proc, Ride, cli, make_ride
+from itt_planner_ros.ros_types import edge_node, message_class, qos_profile
+from rclpy.executors import SingleThreadedExecutor
+from support.ros_support import RIDE_T0_S, RIDER, Proc, Ride, cli, make_ride
 
 from bench.bench_ros_echo import echo_round_trips_ms
 from itt_msgs_py import deserialize, registry, serialize, topics
 from itt_msgs_py.convert import from_time
 from itt_msgs_py.dds_env import localhost_env
 from itt_planner.logs.ridelog import read_ride_log
-from itt_planner_ros.ros_types import edge_node, message_class, qos_profile
-from rclpy.executors import SingleThreadedExecutor
 
 
 def node_latency_ms(ride: Ride, folder: Path, seconds: float, env: dict[str, str]
@@ -62,10 +58,12 @@ def node_latency_ms(ride: Ride, folder: Path, seconds: float, env: dict[str, str
             pubs = {t.key: bench.create_publisher(message_class(t.msgtype), t.name(),
                                                   qos_profile(t.qos))
                     for t in registry.INPUT_TOPICS}
-            bench.create_subscription(
-                message_class(topics.ADVICE.msgtype), topics.ADVICE.name(),
-                lambda data: arrivals.append((time.perf_counter(), data)),
-                qos_profile(topics.ADVICE.qos), raw=True)
+            def on_advice(data: Any) -> None:  # raw=True: the CDR bytes
+                arrivals.append((time.perf_counter(), data))
+
+            bench.create_subscription(message_class(topics.ADVICE.msgtype),
+                                      topics.ADVICE.name(), on_advice,
+                                      qos_profile(topics.ADVICE.qos), raw=True)
             executor = SingleThreadedExecutor(context=bench.context)
             executor.add_node(bench)
             spinner = threading.Thread(target=executor.spin, daemon=True)
@@ -80,8 +78,9 @@ def node_latency_ms(ride: Ride, folder: Path, seconds: float, env: dict[str, str
                 if stamp - RIDE_T0_S > seconds:
                     break
                 time.sleep(max(0.0, start + (stamp - RIDE_T0_S) - time.perf_counter()))
-                topic, msg = registry.sample_to_msg(sample)  # type: ignore[arg-type]
-                pubs[topic.key].publish(serialize(msg))
+                assert registry.is_sample(sample)
+                topic, sample_msg = registry.sample_to_msg(sample)
+                pubs[topic.key].publish(serialize(sample_msg))
                 if topic is registry.GPS_FIX:
                     sent[round(stamp, 3)] = time.perf_counter()
             time.sleep(2.0)
@@ -89,9 +88,10 @@ def node_latency_ms(ride: Ride, folder: Path, seconds: float, env: dict[str, str
             spinner.join(5)
     finally:
         node.stop()
-    latencies, solves = [], []
+    latencies: list[float] = []
+    solves: list[float] = []
     for arrived, data in arrivals:
-        msg = deserialize(data, topics.ADVICE.msgtype)
+        msg: Any = deserialize(data, topics.ADVICE.msgtype)  # an itt_msgs/Advice
         stamp = round(from_time(msg.header.stamp), 3)
         if stamp in sent:
             latencies.append((arrived - sent[stamp]) * 1e3)

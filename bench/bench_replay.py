@@ -24,27 +24,31 @@ import statistics
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from itt_planner.model.conditions import Conditions  # noqa: E402
 from itt_planner.course.loader import load_course  # noqa: E402
-from itt_planner.ocp.course_settings import OcpSettings  # noqa: E402
-from itt_planner.ocp.cache import load_or_solve  # noqa: E402
-from itt_planner.session.replay import replay_ride  # noqa: E402
-from itt_planner.session.config import SessionConfig  # noqa: E402
 from itt_planner.logs.ridelog import RideLogReader  # noqa: E402
+from itt_planner.model.conditions import Conditions  # noqa: E402
 from itt_planner.model.rider import PRESETS  # noqa: E402
+from itt_planner.ocp.cache import load_or_solve  # noqa: E402
+from itt_planner.ocp.course_settings import OcpSettings  # noqa: E402
+from itt_planner.session.config import SessionConfig  # noqa: E402
+from itt_planner.session.replay import ReplayResult, replay_ride  # noqa: E402
 
+T = TypeVar("T")
 COURSE = "verona-like"
 RIDER = "typical"
 DEMO_BAG = ROOT / "bags" / "typical_verona-like_cp-overestimated.mcap"
 
 
-def median_of(runs: int, fn) -> tuple[float, list[float], object]:  # noqa: ANN001
-    times, last = [], None
+def median_of(runs: int, fn: Callable[[], T]) -> tuple[float, list[float], T]:
+    """Median wall time of `runs` calls, every time, and the last call's result."""
+    times: list[float] = []
     for _ in range(runs):
         t0 = time.perf_counter()
         last = fn()
@@ -72,7 +76,7 @@ def main() -> int:
         log_path = DEMO_BAG
         print(f"input: {log_path.relative_to(ROOT)}")
 
-        def run(replan_period_s: float) -> object:
+        def run(replan_period_s: float) -> ReplayResult:
             config = SessionConfig(course=COURSE, rider=RIDER, model=args.model,
                                    replan_period_s=replan_period_s, deterministic=True,
                                    plan_cache=str(ROOT / ".itt_cache"))
@@ -87,9 +91,10 @@ def main() -> int:
     solve = sorted(full.solve_times_s)
     print(f"ride: {ride_s / 60:.1f} min of stamps, {full.messages_in} input messages, "
           f"{full.advice_out} advice ({full.fallbacks} fallbacks)")
-    for name, med, all_, result in (("full (1 Hz replans)", full_s, full_all, full),
-                                    ("estimate only", est_s, est_all, est),
-                                    ("decode only", dec_s, dec_all, None)):
+    rows: tuple[tuple[str, float, list[float], ReplayResult | None], ...] = (
+        ("full (1 Hz replans)", full_s, full_all, full), ("estimate only", est_s, est_all, est),
+        ("decode only", dec_s, dec_all, None))
+    for name, med, all_, result in rows:
         extra = f", {result.advice_out} advice" if result is not None else ""
         print(f"{name:22s} median {med:7.2f} s  ({', '.join(f'{t:.2f}' for t in all_)})  "
               f"{ride_s / med:7.1f}x real time{extra}")

@@ -44,9 +44,13 @@ TIMEOUT_S = 1.0
 WARM_UP = 20
 
 
+# rclpy and the message packages are imported where used: the echo process and this one
+# set their ROS environment (domain, loopback-only profile) first.
+
+
 def _fix() -> Any:
     """A GPS fix like the demo ride's (frame `gps`, a fix, diagonal covariance)."""
-    from sensor_msgs.msg import NavSatFix, NavSatStatus
+    from sensor_msgs.msg import NavSatFix, NavSatStatus  # noqa: PLC0415
 
     fix = NavSatFix(latitude=45.438, longitude=10.992, altitude=60.0,
                     position_covariance_type=NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN)
@@ -58,11 +62,10 @@ def _fix() -> Any:
 
 def serve_echo() -> None:
     """The echo process: rclpy ping -> pong, and a UDP echo; until SIGTERM/SIGINT."""
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-    from sensor_msgs.msg import NavSatFix
-
-    from itt_planner_ros.ros_types import edge_node
+    from itt_planner_ros.ros_types import edge_node  # noqa: PLC0415
+    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415
+    from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data  # noqa: PLC0415
+    from sensor_msgs.msg import NavSatFix  # noqa: PLC0415
 
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
@@ -107,9 +110,9 @@ def _udp_round_trips_ms(port: int, payload: bytes, count: int, period_s: float) 
     return rtts
 
 
-def echo_round_trips_ms(env: dict[str, str], log: Path, count: int = 200,
-                        period_s: float = 0.05, udp: list[float] | None = None
-                        ) -> list[float]:
+def echo_round_trips_ms(  # noqa: PLR0912, PLR0915  (one measurement: start, match, time, stop)
+        env: dict[str, str], log: Path, count: int = 200, period_s: float = 0.05,
+        udp: list[float] | None = None) -> list[float]:
     """Round-trip times (ms) of `count` rclpy echoes through a second process.
 
     `env` is the echo process's environment; this process must already hold the same ROS
@@ -121,12 +124,11 @@ def echo_round_trips_ms(env: dict[str, str], log: Path, count: int = 200,
         RuntimeError: the echo process did not start, the topics did not match, or more
             than 5 % of the round trips were lost.
     """
-    from rclpy.executors import SingleThreadedExecutor
-    from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-    from rclpy.serialization import serialize_message
-    from sensor_msgs.msg import NavSatFix
-
-    from itt_planner_ros.ros_types import edge_node
+    from itt_planner_ros.ros_types import edge_node  # noqa: PLC0415
+    from rclpy.executors import SingleThreadedExecutor  # noqa: PLC0415
+    from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data  # noqa: PLC0415
+    from rclpy.serialization import serialize_message  # noqa: PLC0415
+    from sensor_msgs.msg import NavSatFix  # noqa: PLC0415
 
     differ = [k for k in ROS_VARS if env.get(k) != os.environ.get(k)]
     if differ:
@@ -195,7 +197,7 @@ def main() -> None:
     if args.echo:
         serve_echo()
         return
-    from itt_msgs_py.dds_env import CONFLICTING_VARS, localhost_env
+    from itt_msgs_py.dds_env import CONFLICTING_VARS, localhost_env  # noqa: PLC0415
 
     for var in CONFLICTING_VARS:
         os.environ.pop(var, None)

@@ -60,8 +60,8 @@ def ros_unavailable_reason() -> str | None:
     Imports rclpy and itt_msgs.msg (a few tenths of a second the first time).
     """
     try:
-        import itt_msgs.msg  # noqa: F401  (built by set-up into the venv)
-        import rclpy  # noqa: F401
+        import itt_msgs.msg  # noqa: F401, PLC0415  (built by set-up into the venv; probed)
+        import rclpy  # noqa: F401, PLC0415
     except ImportError as exc:
         if SETUP_STATUS_FILE.is_file():
             return SETUP_STATUS_FILE.read_text().strip()

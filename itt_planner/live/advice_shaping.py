@@ -37,8 +37,8 @@ from typing import Any
 
 import numpy as np
 
-from itt_planner.live.advice import Advice, Cue
 from itt_planner.course.geometry import Course
+from itt_planner.live.advice import Advice, Cue
 
 #: A target step larger than this (W) between consecutive advices must have a cue.
 STEP_LIMIT_W = 100.0

@@ -34,14 +34,14 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from itt_planner.model.conditions import Conditions
 from itt_planner.course.geometry import Course
 from itt_planner.errors import SolveError
+from itt_planner.model.conditions import Conditions
+from itt_planner.model.rider import Rider
+from itt_planner.model.state import RiderState
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.plan import Plan
-from itt_planner.model.rider import Rider
-from itt_planner.model.state import RiderState
 
 if TYPE_CHECKING:
     from itt_planner.ocp.horizon import HorizonPlanner

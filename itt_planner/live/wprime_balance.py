@@ -15,6 +15,7 @@ estimator's power hook drops bad ones).
 from __future__ import annotations
 
 import math
+
 import numpy as np
 
 from itt_planner.model.rider import Rider

@@ -19,10 +19,10 @@ import numpy as np
 from pymap3d.haversine import anglesep
 
 from itt_msgs_py import DEFAULT_NAMESPACE, INPUT_TOPICS
-from itt_planner.errors import CourseError, RideLogError
-from itt_planner.logs.ridelog_writer import RideLogWriter, RideMetadata
-from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.course.track_files import Recording, read_recording
+from itt_planner.errors import CourseError, RideLogError
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.logs.ridelog_writer import RideLogWriter, RideMetadata
 
 log = logging.getLogger(__name__)
 

@@ -69,16 +69,16 @@ def build_engine(config: SessionConfig) -> PacingEngine:
         CourseError, RiderError, SolveError: the course, rider or plan is unusable.
     """
     # Heavy (CasADi): imported when a session is actually built.
-    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.course.loader import load_course  # noqa: PLC0415
     from itt_planner.live.course_replan import CourseReplanSettings  # noqa: PLC0415
     from itt_planner.live.engine import EngineSettings, PacingEngine  # noqa: PLC0415
+    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
+    from itt_planner.model.rider import load_rider  # noqa: PLC0415
+    from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
+    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
     from itt_planner.ocp.horizon import HorizonPlanner  # noqa: PLC0415
     from itt_planner.ocp.horizon_settings import HorizonSettings  # noqa: PLC0415
-    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
     from itt_planner.ocp.plan import Plan  # noqa: PLC0415
-    from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
-    from itt_planner.model.rider import load_rider  # noqa: PLC0415
     from itt_planner.ocp.solver import PlanStatus  # noqa: PLC0415
 
     course = load_course(config.course)

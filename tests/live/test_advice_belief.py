@@ -18,7 +18,8 @@ from hypothesis import strategies as st
 from support.hairpin_fixtures import PLAN_CONDITIONS, RIDER
 
 from itt_planner.course.builder import build_course
-from itt_planner.live.advice import Cue
+from itt_planner.course.geometry import Course
+from itt_planner.live.advice import Advice, Cue
 from itt_planner.live.advice_shaping import (
     STEP_LIMIT_W,
     AdviceShaper,
@@ -35,6 +36,7 @@ from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.live.wprime_balance import WPrimeBalance
 from itt_planner.ocp.horizon import HorizonPlanner
 from itt_planner.ocp.horizon_settings import HorizonSettings
+from itt_planner.ocp.plan import Plan
 
 CALM = HorizonSettings(horizon_m=400.0, n_intervals=50, max_wall_time_s=30.0)
 #: Deterministic, no re-solves of the rest of the course (a worker process per test
@@ -43,13 +45,13 @@ SETTINGS = EngineSettings(max_solve_time_s=30.0, deterministic=True,
                           course_replan=CourseReplanSettings(period_s=0.0))
 
 
-def _engine(course, plan) -> PacingEngine:
+def _engine(course: Course, plan: Plan) -> PacingEngine:
     planner = HorizonPlanner(course, RIDER, plan, conditions=PLAN_CONDITIONS, settings=CALM)
     return PacingEngine(course, RIDER, plan, settings=SETTINGS, planner=planner)
 
 
-def _ride(engine: PacingEngine, course, plan, power_w: float | None, *, v_scale: float,
-          t_end: float) -> list:
+def _ride(engine: PacingEngine, course: Course, plan: Plan, power_w: float | None, *,
+          v_scale: float, t_end: float) -> list[Advice]:
     """Perfect GPS and wheel speed along the plan's line, time-stretched by `v_scale`;
     the power meter reads a constant `power_w` whatever the advice (None: the plan's
     pedalling power there); 1 Hz."""
@@ -70,7 +72,9 @@ def _ride(engine: PacingEngine, course, plan, power_w: float | None, *, v_scale:
     return out
 
 
-def test_a_rider_ignoring_the_advice_at_steady_sub_cp_power_is_not_refitted(course, plan):
+def test_a_rider_ignoring_the_advice_at_steady_sub_cp_power_is_not_refitted(
+        course: Course, plan: Plan,
+) -> None:
     """0.92 CP all the way (the real ride's 267 W at CP 290), 8 % slower than the plan:
     the horizon asks for well above CP with W' full, for longer than the old detector's
     20 s window, and the rider does not follow. A choice, not a limit: no refit."""
@@ -92,7 +96,7 @@ def test_a_rider_ignoring_the_advice_at_steady_sub_cp_power_is_not_refitted(cour
     assert rider_model.values["refits"] == "0"
 
 
-def test_a_rider_stronger_than_believed_gets_cp_revised_upward(course, plan):
+def test_a_rider_stronger_than_believed_gets_cp_revised_upward(course: Course, plan: Plan) -> None:
     """1.3 CP held steadily: the balance at the believed CP would go below zero; CP is
     raised to what explains the power history, W' is never shown below zero, and the
     refit carries its evidence; the advice says which CP it was planned with."""
@@ -120,7 +124,7 @@ def test_a_rider_stronger_than_believed_gets_cp_revised_upward(course, plan):
     assert diag.values["refits_up"] == str(len(refits)) and "refitted up" in diag.message
 
 
-def test_target_is_never_negative_and_steps_only_at_cues(course, plan):
+def test_target_is_never_negative_and_steps_only_at_cues(course: Course, plan: Plan) -> None:
     """The engine's advice over the hairpin course ridden as planned (a 12 m hairpin
     where the plan brakes): no target below 0, and every step over 100 W is explained by
     a cue change."""
@@ -149,7 +153,7 @@ CLIMB_COURSE = build_course({
                  {"type": "straight", "length_m": 800, "grade_pct": 8}]})
 
 
-def test_climb_starts_at_the_foot_of_the_climb():
+def test_climb_starts_at_the_foot_of_the_climb() -> None:
     feet = climb_starts(CLIMB_COURSE)
     assert len(feet) == 1 and 520.0 <= feet[0] <= 640.0
 
@@ -158,7 +162,9 @@ def test_climb_starts_at_the_foot_of_the_climb():
 @given(st.lists(st.tuples(st.floats(-5000.0, 1500.0), st.floats(0.2, 3.0), st.floats(1.0, 20.0)),
                 min_size=2, max_size=40),
        st.floats(0.0, 1500.0))
-def test_shaped_target_is_never_negative_and_rate_limited_except_at_cues(steps, s0):
+def test_shaped_target_is_never_negative_and_rate_limited_except_at_cues(
+        steps: list[tuple[float, float, float]], s0: float,
+) -> None:
     """Any planned power profile (braking forces down to -5 kW, jumps of kW), any advice
     spacing: the target is >= 0 and changes by at most vW_max x dt (dt capped at
     `max_step_s`) unless the cue changes with a documented reason."""
@@ -186,7 +192,7 @@ def test_shaped_target_is_never_negative_and_rate_limited_except_at_cues(steps, 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(st.tuples(st.floats(0.0, 900.0), st.integers(5, 120)), min_size=1, max_size=25))
-def test_w_prime_shown_is_never_below_zero_without_a_refit(blocks):
+def test_w_prime_shown_is_never_below_zero_without_a_refit(blocks: list[tuple[float, int]]) -> None:
     """Any power history (blocks of constant power, 0-2 CP): the published balance is
     >= 0, and after every observation the balance as integrated is no further below zero
     than the up margin unless a refit was made at that very observation."""

@@ -4,6 +4,7 @@ test course; failures are provoked with real solver budgets, not mocks."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import threading
@@ -12,12 +13,14 @@ import numpy as np
 import pytest
 from support.hairpin_fixtures import PLAN_CONDITIONS, RIDER
 
-from itt_planner.live.advice import Level
+from itt_planner.course.geometry import Course
+from itt_planner.live.advice import Advice, Diagnostic, Level
 from itt_planner.live.course_replan import CourseReplanSettings
 from itt_planner.live.engine import ON_PLAN, EngineSettings, PacingEngine
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.ocp.horizon import HorizonPlanner
 from itt_planner.ocp.horizon_settings import SUBOPTIMAL_FEASIBLE, HorizonSettings
+from itt_planner.ocp.plan import Plan
 
 #: A short horizon keeps the tests fast; a wall-time budget no loaded CI machine hits
 #: keeps the solver's path deterministic.
@@ -27,13 +30,13 @@ CALM = HorizonSettings(horizon_m=400.0, n_intervals=50, max_wall_time_s=30.0)
 PATIENT = EngineSettings(max_solve_time_s=30.0, on_plan_band_j=0.0)
 
 
-def _planner(course, plan, settings: HorizonSettings = CALM) -> HorizonPlanner:
+def _planner(course: Course, plan: Plan, settings: HorizonSettings = CALM) -> HorizonPlanner:
     """A horizon planner believing what the plan was solved for."""
     return HorizonPlanner(course, RIDER, plan, conditions=PLAN_CONDITIONS, settings=settings)
 
 
-def _ride(engine: PacingEngine, course, plan, t_end: float, *, v_scale: float = 1.0,
-          start: float = 0.0, extra_power_w: float = 0.0) -> list:
+def _ride(engine: PacingEngine, course: Course, plan: Plan, t_end: float, *,
+          v_scale: float = 1.0, start: float = 0.0, extra_power_w: float = 0.0) -> list[Advice]:
     """Perfect sensors riding the plan (time-stretched by `v_scale`; the power meter
     reading `extra_power_w` over the plan's), 1 Hz, with an update every second;
     returns the advice."""
@@ -53,7 +56,7 @@ def _ride(engine: PacingEngine, course, plan, t_end: float, *, v_scale: float = 
     return out
 
 
-def test_advice_contents(course, plan):
+def test_advice_contents(course: Course, plan: Plan) -> None:
     engine = PacingEngine(course, RIDER, plan, settings=PATIENT,
                           planner=_planner(course, plan))
     advice = _ride(engine, course, plan, 15.0)
@@ -83,7 +86,7 @@ def test_advice_contents(course, plan):
     assert a.predicted_finish_s == pytest.approx(plan.finish_time_s, rel=0.02)
     assert a.horizon_power_w[1] == pytest.approx(plan.at("power_w", a.horizon_s_m[1]), abs=120.0)
     # The target follows the plan at the rider's power rate (vW_max, 50 W/s), never < 0.
-    for before, after in zip(advice[:-1], advice[1:]):
+    for before, after in itertools.pairwise(advice):
         assert after.target_power_w >= 0.0
         assert abs(after.target_power_w - before.target_power_w) <= RIDER.power_rate_max_wps * (
             after.stamp_s - before.stamp_s) + 1e-6 or after.cue != before.cue
@@ -92,7 +95,9 @@ def test_advice_contents(course, plan):
     assert a.w_prime_finish_j == pytest.approx(plan.w_prime_j[-1], abs=3000.0)
 
 
-def test_on_plan_the_advice_is_the_plan_until_w_prime_leaves_the_band(course, plan):
+def test_on_plan_the_advice_is_the_plan_until_w_prime_leaves_the_band(
+        course: Course, plan: Plan,
+) -> None:
     """Riding the plan, the advice is the plan itself (no solve); once the W' balance is
     more than the band below the plan's, the horizon replans from the rider's state."""
     engine = PacingEngine(course, RIDER, plan, settings=EngineSettings(max_solve_time_s=30.0),
@@ -111,7 +116,7 @@ def test_on_plan_the_advice_is_the_plan_until_w_prime_leaves_the_band(course, pl
     assert engine.counters["solves"] >= 1
 
 
-def test_off_the_plan_the_rest_of_the_course_is_re_solved(course, plan):
+def test_off_the_plan_the_rest_of_the_course_is_re_solved(course: Course, plan: Plan) -> None:
     """W' out of the band: the horizon replans and the rest of the course is re-solved
     from the rider's state in the background; `delay_s` of stamp time later (the engine
     is deterministic) that plan is the plan in force, advised as such while the rider
@@ -148,7 +153,7 @@ def test_off_the_plan_the_rest_of_the_course_is_re_solved(course, plan):
     assert solver.values["course_replans"] == "1"
 
 
-def test_clocked_by_stamps_only(course, plan):
+def test_clocked_by_stamps_only(course: Course, plan: Plan) -> None:
     engine = PacingEngine(course, RIDER, plan,
                           settings=EngineSettings(replan_period_s=2.0, max_solve_time_s=30.0,
                                                   on_plan_band_j=0.0),
@@ -166,7 +171,7 @@ def test_clocked_by_stamps_only(course, plan):
     assert all(engine.update(3.0) is None for _ in range(3))
 
 
-def test_fallback_keeps_last_good_advice_shifted(course, plan):
+def test_fallback_keeps_last_good_advice_shifted(course: Course, plan: Plan) -> None:
     good = _planner(course, plan)
     engine = PacingEngine(course, RIDER, plan, settings=PATIENT, planner=good)
     advice = _ride(engine, course, plan, 20.0)
@@ -200,7 +205,7 @@ def test_fallback_keeps_last_good_advice_shifted(course, plan):
             "itt_planner/solver"].level == Level.OK
 
 
-def test_fallback_before_any_good_solve_uses_the_plan(course, plan):
+def test_fallback_before_any_good_solve_uses_the_plan(course: Course, plan: Plan) -> None:
     engine = PacingEngine(course, RIDER, plan, settings=EngineSettings(on_plan_band_j=0.0),
                           planner=_planner(course, plan,
                                            HorizonSettings(horizon_m=400.0, max_iter=0)))
@@ -212,7 +217,7 @@ def test_fallback_before_any_good_solve_uses_the_plan(course, plan):
     assert a.predicted_finish_s == pytest.approx(plan.finish_time_s, rel=0.02)
 
 
-def test_overrun_is_a_fallback_unless_deterministic(course, plan):
+def test_overrun_is_a_fallback_unless_deterministic(course: Course, plan: Plan) -> None:
     planner = _planner(course, plan)
     live = PacingEngine(course, RIDER, plan, planner=planner,
                         settings=EngineSettings(max_solve_time_s=0.0, on_plan_band_j=0.0))
@@ -228,8 +233,8 @@ def test_overrun_is_a_fallback_unless_deterministic(course, plan):
     assert "solve_time_s" not in replay.diagnostics(4.0)[0].values
 
 
-def test_deterministic_replay_is_identical(course, plan):
-    def run():
+def test_deterministic_replay_is_identical(course: Course, plan: Plan) -> None:
+    def run() -> tuple[list[Advice], list[Diagnostic]]:
         engine = PacingEngine(course, RIDER, plan,
                               settings=EngineSettings(deterministic=True,
                                                       max_solve_time_s=0.0,
@@ -240,7 +245,7 @@ def test_deterministic_replay_is_identical(course, plan):
 
     (a1, d1), (a2, d2) = run(), run()
     assert len(a1) == len(a2) == 8
-    for x, y in zip(a1, a2):
+    for x, y in zip(a1, a2, strict=True):
         for name in ("horizon_s_m", "horizon_power_w", "horizon_n_m", "line_lat_deg"):
             assert np.array_equal(getattr(x, name), getattr(y, name))
         assert (x.target_power_w, x.predicted_finish_s, x.solve_time_s, x.solver_status) == \
@@ -248,7 +253,7 @@ def test_deterministic_replay_is_identical(course, plan):
     assert d1 == d2
 
 
-def test_bad_inputs_and_staleness_in_diagnostics(course, plan):
+def test_bad_inputs_and_staleness_in_diagnostics(course: Course, plan: Plan) -> None:
     engine = PacingEngine(course, RIDER, plan, settings=PATIENT,
                           planner=_planner(course, plan))
     _ride(engine, course, plan, 3.0)
@@ -270,18 +275,18 @@ def test_bad_inputs_and_staleness_in_diagnostics(course, plan):
                for t in ("gps", "speed", "power"))
 
 
-def test_inputs_from_other_threads_while_solving(course, plan):
+def test_inputs_from_other_threads_while_solving(course: Course, plan: Plan) -> None:
     engine = PacingEngine(course, RIDER, plan, settings=PATIENT,
                           planner=_planner(course, plan))
     _ride(engine, course, plan, 2.0)
-    errors = []
+    errors: list[Exception] = []
 
-    def feed():
+    def feed() -> None:
         try:
             for k in range(2000):
                 engine.on_sample(PowerReading(2.0 + k * 1e-3, 400.0))
                 engine.on_sample(WheelSpeed(2.0 + k * 1e-3, 12.0))
-        except Exception as err:  # pragma: no cover - the assertion below reports it
+        except Exception as err:  # noqa: BLE001  # pragma: no cover - reported below
             errors.append(err)
 
     thread = threading.Thread(target=feed)
@@ -292,11 +297,12 @@ def test_inputs_from_other_threads_while_solving(course, plan):
     assert engine.counters["power_accepted"] == 2 + 2000
 
 
-def test_snapshot_restore_across_a_restart(course, plan):
+def test_snapshot_restore_across_a_restart(course: Course, plan: Plan) -> None:
     planner = _planner(course, plan)
     engine = PacingEngine(course, RIDER, plan, settings=PATIENT, planner=planner)
     _ride(engine, course, plan, 12.0)
     before = engine.state
+    assert before is not None
     snap = json.loads(json.dumps(engine.snapshot()))  # what a node writes to disk
     fresh = PacingEngine(course, RIDER, plan, settings=PATIENT, planner=planner)
     fresh.restore(snap)

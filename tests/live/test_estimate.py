@@ -3,32 +3,46 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from itt_planner.course.fit import fit_course
+from itt_planner.course.geometry import Course
 from itt_planner.course.track_files import read_recording
 from itt_planner.live.estimate import EstimatorSettings, StateEstimator
 from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
 from itt_planner.live.wprime_balance import WPrimeBalance
 from itt_planner.model.rider import PRESETS
+from itt_planner.model.state import RiderState
 from itt_planner.sim import SensorSettings, hairpin_course, sensor_samples
 
 RIDER = PRESETS["paper"]
 
 
-def _estimator(course) -> StateEstimator:
+def _estimator(course: Course) -> StateEstimator:
     """An estimator with a W' model of its own (the engine's builds one the same way)."""
     return StateEstimator(course, WPrimeBalance(RIDER, EstimatorSettings().power_hold_s))
 
 
+def _at(est: StateEstimator, stamp_s: float) -> RiderState:
+    """The state at `stamp_s` of an estimator that has one."""
+    state = est.state(stamp_s)
+    assert state is not None
+    return state
+
+
 @pytest.fixture(scope="module")
-def course():
+def course() -> Course:
     return hairpin_course()
 
 
-def _truth(course, seed: int = 0):
+Profiles = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def _truth(course: Course, seed: int = 0) -> Profiles:
     """A rider whose speed varies 8-14 m/s and who wanders across the lane."""
     t = np.arange(0.0, 400.0, 0.1)
     v = 11.0 + 3.0 * np.sin(t / 20.0)
@@ -52,7 +66,7 @@ def _feed(est: StateEstimator, samples: list[Sample]) -> list[tuple[float, float
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
-def test_simulated_ride_with_dropout_and_outliers(course, seed):
+def test_simulated_ride_with_dropout_and_outliers(course: Course, seed: int) -> None:
     t, s, n, v, p = _truth(course)
     drop_start, drop_len = 100.0, 60.0
     sensors = SensorSettings(dropouts=((drop_start, drop_len),), outliers=(30.0, 50.0, 200.0))
@@ -72,14 +86,14 @@ def test_simulated_ride_with_dropout_and_outliers(course, seed):
     assert track[-1, 1] == pytest.approx(s[-1], abs=15.0)
 
 
-def test_along_track_jump_is_gated_and_crossing_is_not_taken(course):
+def test_along_track_jump_is_gated_and_crossing_is_not_taken(course: Course) -> None:
     """A fix 100 m ahead ON the road passes the off-road test; the innovation gate must
     catch it. Where the road crosses itself (s ~ 550 m and ~ 1020 m) the match stays on
     the branch being ridden."""
     est = _estimator(course)
     v = 12.0
     jumped = None
-    for k in range(0, 120):
+    for k in range(120):
         stamp = float(k)
         s_true = v * k
         est.on_speed(WheelSpeed(stamp, v))
@@ -95,7 +109,7 @@ def test_along_track_jump_is_gated_and_crossing_is_not_taken(course):
     assert est.counters["gps_outlier"] == 1
 
 
-def test_lost_estimator_reacquires_globally(course):
+def test_lost_estimator_reacquires_globally(course: Course) -> None:
     """Started at the wrong place (a wrong restore), the estimator rejects the first
     fixes as outliers, then re-acquires on the whole course."""
     est = _estimator(course)
@@ -113,10 +127,10 @@ def test_lost_estimator_reacquires_globally(course):
         lat, lon, alt = course.to_geodetic(*course.enu_at(s_true, 1.0))
         est.on_speed(WheelSpeed(float(k), 10.0))
         est.on_gps(GpsFix(float(k), float(lat), float(lon), float(alt)))
-    assert est.state(59.0).s_m == pytest.approx(1800.0 + 590.0, abs=10.0)
+    assert _at(est, 59.0).s_m == pytest.approx(1800.0 + 590.0, abs=10.0)
 
 
-def test_bad_inputs_are_counted_not_raised(course):
+def test_bad_inputs_are_counted_not_raised(course: Course) -> None:
     est = _estimator(course)
     lat, lon, alt = (float(a) for a in course.to_geodetic(*course.enu_at(100.0, 0.0)))
     assert est.on_gps(GpsFix(0.0, lat, lon, alt))
@@ -141,7 +155,7 @@ def test_bad_inputs_are_counted_not_raised(course):
     assert math.isfinite(state.w_prime_j)
 
 
-def test_wprime_balance_matches_skiba(course):
+def test_wprime_balance_matches_skiba(course: Course) -> None:
     """E9 Skiba: 600 s at CP + 30 W depletes 18 kJ; then below CP it recovers
     exponentially with time constant E_0 / (W_C - P)."""
     est = _estimator(course)
@@ -150,16 +164,16 @@ def test_wprime_balance_matches_skiba(course):
         est.on_power(PowerReading(float(k), cp + 30.0))
     lat, lon, alt = (float(a) for a in course.to_geodetic(*course.enu_at(0.0, 0.0)))
     est.on_gps(GpsFix(600.0, lat, lon, alt))
-    assert est.state(600.0).w_prime_j == pytest.approx(e0 - 30.0 * 600.0, rel=1e-6)
+    assert _at(est, 600.0).w_prime_j == pytest.approx(e0 - 30.0 * 600.0, rel=1e-6)
     for k in range(601, 901):
         est.on_power(PowerReading(float(k), cp - 100.0))
     deficit = 30.0 * 600.0 * math.exp(-100.0 * 300.0 / e0)
-    assert est.state(900.0).w_prime_j == pytest.approx(e0 - deficit, rel=0.01)
+    assert _at(est, 900.0).w_prime_j == pytest.approx(e0 - deficit, rel=0.01)
     # A power meter falling silent: its last value holds 5 s, then it counts as zero.
-    assert est.state(1000.0).power_w == 0.0
+    assert _at(est, 1000.0).power_w == 0.0
 
 
-def test_refit_critical_power_explains_a_rider_out_of_wprime(course):
+def test_refit_critical_power_explains_a_rider_out_of_wprime(course: Course) -> None:
     """A rider whose true CP is 5 % below the believed one holds 500 W until empty, then
     only CP - 10 W: the balance at the believed CP still shows W' left; the fit finds
     the CP whose balance empties (the true one), and using it empties the balance."""
@@ -181,7 +195,7 @@ def test_refit_critical_power_explains_a_rider_out_of_wprime(course):
     assert balance.fit_critical_power(0.5 * fitted, fitted) == pytest.approx(fitted, abs=0.05)
 
 
-def test_every_sample_type_has_one_hook(course):
+def test_every_sample_type_has_one_hook(course: Course) -> None:
     """The engine dispatches through the estimator's hook table: one hook per sample
     type, and a type without one is refused (the engine counts it, never crashes)."""
     est = _estimator(course)
@@ -192,17 +206,17 @@ def test_every_sample_type_has_one_hook(course):
         est.hook("not a sample")  # type: ignore[arg-type]
 
 
-def test_snapshot_restore_keeps_wprime_and_progress(course):
+def test_snapshot_restore_keeps_wprime_and_progress(course: Course) -> None:
     est = _estimator(course)
     t, s, n, v, p = _truth(course)
     samples = sensor_samples(course, t, s, n, v, p + 200.0, np.random.default_rng(0))
     half = [x for x in samples if x.stamp_s < 100.0]
     _feed(est, half)
-    before = est.state(99.0)
+    before = _at(est, 99.0)
     snap = est.snapshot()
     fresh = _estimator(course)
     fresh.restore(snap)
-    restored = fresh.state(99.0)
+    restored = _at(fresh, 99.0)
     assert restored.w_prime_j == pytest.approx(before.w_prime_j)
     assert restored.s_m == pytest.approx(before.s_m)
     assert restored.elapsed_s == pytest.approx(before.elapsed_s)
@@ -217,14 +231,15 @@ RIDES = ["edge1000_ardennes_2019.fit", "edge810_vector_stjohns_2013.fit",
 
 
 @pytest.mark.parametrize("name", RIDES)
-def test_real_ride_on_its_own_track(data_file, name):
+def test_real_ride_on_its_own_track(data_file: Callable[[str], Path], name: str) -> None:
     """Every record of the real ride is fed as it was recorded (gaps, pauses, GPS jumps,
     NaNs and power spikes included); the course is the ride's own fitted track. The
     whole ride is used (the estimator runs at ~10 k samples/s)."""
     rec = read_recording(data_file(f"rides/{name}"))
     course = fit_course(rec)
     est = _estimator(course)
-    progress = []
+    assert rec.time_s is not None
+    progress: list[float] = []
     for i in range(len(rec)):
         stamp = float(rec.time_s[i])
         est.on_gps(GpsFix(stamp, float(rec.lat_deg[i]), float(rec.lon_deg[i]),
@@ -237,16 +252,16 @@ def test_real_ride_on_its_own_track(data_file, name):
         if state is not None:
             progress.append(state.s_m)
             assert 0.0 <= state.w_prime_j <= RIDER.w_prime_j + 1e-6
-    progress = np.array(progress)
-    assert np.diff(progress).min() >= 0.0
+    reached = np.array(progress)
+    assert np.diff(reached).min() >= 0.0
     # The rider rode the whole track: progress reaches its end.
-    assert progress[-1] >= 0.98 * course.length_m
+    assert reached[-1] >= 0.98 * course.length_m
     # Most fixes are on the track; the rest (GPS jumps, stretches the course fit left
     # out of a messy track: the Shanghai stop-and-go ride keeps ~82 %) were counted.
     assert est.counters["gps_accepted"] >= 0.8 * np.isfinite(rec.lat_deg).sum()
 
 
-def test_closed_loop_wraps_into_laps():
+def test_closed_loop_wraps_into_laps() -> None:
     """On a closed loop the match wraps around the seam: progress is cumulative (laps),
     and the published s stops at the finish (the course length)."""
     from itt_planner.course.geometry import Course, GeoOrigin
@@ -264,7 +279,7 @@ def test_closed_loop_wraps_into_laps():
         lat, lon, alt = (float(a) for a in loop.to_geodetic(*loop.enu_at(s_true, 0.0)))
         est.on_speed(WheelSpeed(float(k), v))
         assert est.on_gps(GpsFix(float(k), lat, lon, alt)), f"fix {k} rejected"
-        published.append(est.state(float(k)).s_m)
+        published.append(_at(est, float(k)).s_m)
     assert np.diff(published).min() >= 0.0
     assert published[-1] == pytest.approx(length)
     assert est.distance_m == pytest.approx(v * (len(published) - 1), abs=10.0)

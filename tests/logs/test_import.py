@@ -7,6 +7,7 @@ import math
 import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import fitdecode
 import numpy as np
@@ -25,7 +26,7 @@ RIDES = ["edge1000_ardennes_2019.fit", "edge810_vector_stjohns_2013.fit",
          "elemnt_shanghai_2019_stopgo.fit", "sauerland_2025.fit", "zwift_bologna_tt_virtual.tcx"]
 
 
-def source_counts(path: Path) -> dict[str, object]:
+def source_counts(path: Path) -> dict[str, Any]:
     """Records, stamps and per-field counts, parsed here without the project's reader."""
     times, pos, speed, power = [], 0, 0, 0
     with_data = []  # stamps of records that carry a position, a speed or a power
@@ -46,7 +47,9 @@ def source_counts(path: Path) -> dict[str, object]:
     else:
         ns = {"t": "http://www.garmin.com/xmlschemas/TrainingCenterDatabase/v2"}
         for tp in ET.parse(path).getroot().iterfind(".//t:Trackpoint", ns):
-            times.append(np.datetime64(tp.findtext("t:Time", namespaces=ns).rstrip("Z"))
+            stamp = tp.findtext("t:Time", namespaces=ns)
+            assert stamp is not None
+            times.append(np.datetime64(stamp.rstrip("Z"))
                          .astype("datetime64[ms]").astype(float) / 1000)
             has = (tp.find("t:Position", ns) is not None,
                    any(e.tag.endswith("Speed") for e in tp.iter()),
@@ -63,7 +66,8 @@ class Imports:
     """Each ride imported on first use (a test of an absent unlicensed ride skips alone)."""
 
     def __init__(self, data_file: Callable[[str], Path], out: Path) -> None:
-        self.data_file, self.out, self.done = data_file, out, {}
+        self.data_file, self.out = data_file, out
+        self.done: dict[str, ImportSummary] = {}
 
     def __getitem__(self, name: str) -> ImportSummary:
         if name not in self.done:
@@ -100,7 +104,8 @@ def test_every_ride_imports_with_matching_counts(name: str, imported: Imports,
     assert stamps == sorted(stamps)
     assert (stamps[0], stamps[-1]) == pytest.approx(want["data_span"], abs=1e-6)
     kinds = {GpsFix: "/itt/gps/fix", WheelSpeed: "/itt/speed", PowerReading: "/itt/power"}
-    assert all(kinds[type(v)] == t and v.stamp_s == pytest.approx(s) for t, s, v in entries)
+    assert all(isinstance(v, GpsFix | WheelSpeed | PowerReading) and kinds[type(v)] == t
+               and v.stamp_s == pytest.approx(s) for t, s, v in entries)
 
 
 def test_bad_ride_is_reported_not_cleaned(imported: Imports) -> None:
@@ -113,7 +118,7 @@ def test_bad_ride_is_reported_not_cleaned(imported: Imports) -> None:
     assert (s.gps_jumps, s.power_spikes) == (7, 3)
     assert s.duration_s == pytest.approx(3.3 * 3600, abs=60)  # "3:18 h elapsed"
     # Kept as recorded: the spikes are in the log.
-    powers = [v.power_w for t, _, v in RideLogReader(s.output) if t == "/itt/power"]
+    powers = [v.power_w for _, _, v in RideLogReader(s.output) if isinstance(v, PowerReading)]
     assert sum(p > 1500 for p in powers) == 3
     zwift = imported["zwift_bologna_tt_virtual.tcx"]
     assert [p.duration_s for p in zwift.pauses] == [220.0]  # "one 220 s pause at the top"
@@ -133,7 +138,7 @@ def test_imported_log_four_readers(imported: Imports, tmp_path: Path) -> None:
              "/itt/speed": "geometry_msgs/msg/TwistStamped",
              "/itt/power": "itt_msgs/msg/PowerStamped"}
     got = check_all_readers(s.output, {t: (types[t], n) for t, n in s.topics.items()}, tmp_path)
-    ours = [v for t, _, v in RideLogReader(s.output) if t == "/itt/power"]
+    ours = [v for _, _, v in RideLogReader(s.output) if isinstance(v, PowerReading)]
     for i in (0, 1000, len(ours) - 1):
         assert got["mcap_ros2"]["/itt/power"][i].power_w == ours[i].power_w
         assert got["rosbags"]["/itt/power"][i].power_w == ours[i].power_w
@@ -146,7 +151,8 @@ def test_imported_log_four_readers(imported: Imports, tmp_path: Path) -> None:
 
 def test_cli_import_json(data_file: Callable[[str], Path], tmp_path: Path) -> None:
     out = tmp_path / "z.mcap"
-    result = CliRunner().invoke(app, ["import", str(data_file("rides/zwift_bologna_tt_virtual.tcx")),
+    src = data_file("rides/zwift_bologna_tt_virtual.tcx")
+    result = CliRunner().invoke(app, ["import", str(src),
                                       "-o", str(out), "--rider", "A. Rider", "--json"])
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)
@@ -170,5 +176,5 @@ def test_summary_helpers() -> None:
 
 def test_ride_without_times_is_refused(data_file: Callable[[str], Path], tmp_path: Path) -> None:
     course = data_file("courses/tokyo2020_olympic_itt_lap.csv")
-    with pytest.raises(RideLogError, match="tokyo2020_olympic_itt_lap.csv: .*no timestamps"):
+    with pytest.raises(RideLogError, match=r"tokyo2020_olympic_itt_lap\.csv: .*no timestamps"):
         import_ride(course, tmp_path / "x.mcap")

@@ -9,6 +9,7 @@ import subprocess
 import sys
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -78,7 +79,8 @@ def test_the_registry_has_one_entry_per_input_topic() -> None:
         registry.sample_to_msg(make_advice())  # type: ignore[arg-type]
 
 
-def _roundtrip(msg: object) -> object:
+def _roundtrip(msg: Any) -> Any:
+    """The message through CDR bytes and back (a rosbags message object)."""
     data = itt_msgs_py.serialize(msg)
     assert data[:4] == b"\x00\x01\x00\x00"  # CDR little-endian encapsulation header
     return itt_msgs_py.deserialize(data, type(msg).__msgtype__)
@@ -132,6 +134,7 @@ def test_advice_round_trip_and_derived_messages() -> None:
     assert (tp.corner_speed_mps, tp.corner_distance_m) == (8.25, 87.5)
     # No corner ahead: NaN crosses the wire as NaN; the cue constants match the enum.
     none = convert.output_to_core(_roundtrip(convert.advice_to_msg(make_advice_without_corner())))
+    assert isinstance(none, Advice)
     assert math.isnan(none.corner_speed_mps) and none.cue is Cue.PEDAL
     msg = convert.advice_to_msg(advice)
     assert {c.name: int(c) for c in Cue} == {n: getattr(msg, f"CUE_{n}") for n in Cue.__members__}

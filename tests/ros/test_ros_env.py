@@ -91,11 +91,12 @@ def _lines(proc: subprocess.Popen[str]) -> queue.Queue[str]:
 
 def _non_loopback_sockets(pid: int) -> list[str]:
     """Every IPv4/IPv6 socket of `pid` whose local or remote address is not loopback."""
-    bad = []
+    bad: list[str] = []
     for conn in psutil.Process(pid).net_connections(kind="inet"):
-        for addr in (conn.laddr, conn.raddr):
-            if addr and not ipaddress.ip_address(addr.ip).is_loopback:
-                bad.append(f"{conn.type.name} {conn.laddr} -> {conn.raddr or '-'}")
+        remote: Any = conn.raddr  # an empty tuple when unconnected, whatever the stubs say
+        bad.extend(f"{conn.type.name} {conn.laddr} -> {remote or '-'}"
+                   for addr in (conn.laddr, remote)
+                   if addr and not ipaddress.ip_address(addr.ip).is_loopback)
     return bad
 
 
@@ -110,9 +111,9 @@ def test_two_rclpy_processes_talk_over_loopback_only(
             procs.append(subprocess.Popen(
                 [sys.executable, str(script)], env=ros_env, cwd=tmp_path, text=True,
                 stdout=subprocess.PIPE, stderr=subprocess.PIPE))
-        listener, talker = procs
+        listener, _talker = procs
         received = _lines(listener)
-        fixes = []
+        fixes: list[Any] = []
         while len(fixes) < 5:
             try:
                 fixes.append(json.loads(received.get(timeout=30.0)))
@@ -159,7 +160,8 @@ def _rosidl_type_name(kind: Nodetype, spec: Any) -> str:
     raise AssertionError(f"field kind {kind} not used by itt_msgs")
 
 
-def _ros_class(msgtype: str) -> type:
+def _ros_class(msgtype: str) -> Any:
+    """The rclpy (rosidl-generated) class of a message type."""
     package, _, name = msgtype.split("/")
     return getattr(importlib.import_module(f"{package}.msg"), name)
 
@@ -188,11 +190,11 @@ def _plain(msg: Any) -> Any:
     return msg.item() if isinstance(msg, np.generic) else msg
 
 
-def _ros_message(cls: type, plain: dict[str, Any]) -> Any:
+def _ros_message(cls: Any, plain: dict[str, Any]) -> Any:
     """An rclpy message of `cls` set field by field from `_plain` values (no CDR involved)."""
     from rosidl_parser.definition import AbstractNestedType, BasicType, NamespacedType
 
-    def ros_type(slot: NamespacedType) -> type:
+    def ros_type(slot: NamespacedType) -> Any:
         return getattr(importlib.import_module(".".join(slot.namespaces)), slot.name)
 
     msg = cls()

@@ -110,8 +110,9 @@ def _node_names(timeout_s: float, want: tuple[str, str]) -> list[tuple[str, str]
     """Node names and namespaces an in-process rclpy participant discovers (this test's
     domain, loopback only), polled until `want` shows up or the time is over."""
     import rclpy
+    from rclpy.context import Context
 
-    context = rclpy.Context()
+    context = Context()
     rclpy.init(context=context)
     try:
         probe = rclpy.create_node("itt_test_probe", context=context)
@@ -191,8 +192,8 @@ def test_launch_file_is_valid_python_and_agrees_with_the_package() -> None:
     # Launch arguments passed as node parameters must be parameters of the node.
     overrides = next(n for n in ast.walk(tree) if isinstance(n, ast.Tuple)
                      and all(isinstance(e, ast.Constant) for e in n.elts)
-                     and "course" in [e.value for e in n.elts])
-    assert {e.value for e in overrides.elts} <= set(_node_parameters())
+                     and "course" in [getattr(e, "value", None) for e in n.elts])
+    assert {getattr(e, "value", None) for e in overrides.elts} <= set(_node_parameters())
 
 
 def _build_interfaces_module() -> ModuleType:

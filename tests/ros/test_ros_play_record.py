@@ -16,6 +16,7 @@ import threading
 import time
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -79,12 +80,13 @@ def _start_recorder(output: Path, *topic_names: str,
     return proc
 
 
-def _stop(proc: subprocess.Popen[str], sig: signal.Signals) -> dict:
+def _stop(proc: subprocess.Popen[str], sig: signal.Signals) -> dict[str, Any]:
     proc.send_signal(sig)
     out, err = proc.communicate(timeout=60)  # a loaded machine tears down slowly
     assert proc.returncode == 0, err
     sys.stderr.write(err)  # shown with a failure
-    return json.loads(out.strip().splitlines()[-1])
+    stats: dict[str, Any] = json.loads(out.strip().splitlines()[-1])
+    return stats
 
 
 def _payloads(path: Path) -> dict[str, list[bytes]]:
@@ -201,9 +203,11 @@ def test_play_topics_offset_and_stop() -> None:
     rclpy.init(context=context)
     try:
         with edge_node("listener", context) as node:
+            def on_fix(msg: Any) -> None:
+                received.append(msg.latitude)
+
             # Deep enough that a busy machine's late executor turn loses nothing.
-            node.create_subscription(NavSatFix, "/itt/gps/fix",
-                                     lambda m: received.append(m.latitude),
+            node.create_subscription(NavSatFix, "/itt/gps/fix", on_fix,
                                      QoSProfile(depth=100,
                                                 reliability=ReliabilityPolicy.BEST_EFFORT))
             executor = SingleThreadedExecutor(context=context)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pytest
@@ -12,6 +13,7 @@ from support.mcap_readers import check_all_readers, rerun_value
 from typer.testing import CliRunner
 
 from itt_planner.cli import app
+from itt_planner.live.advice import Advice
 from itt_planner.live.engine import ON_PLAN, EngineSettings, PacingEngine
 from itt_planner.logs.ridelog import RawRecord, RideLogReader
 from itt_planner.logs.ridelog_writer import RideLogWriter, RideMetadata
@@ -27,16 +29,21 @@ from itt_planner.session.replay import ReplaySettings, parse_speed, replay
 from itt_planner.session.ride_session import RideSession
 from itt_planner.sim import hairpin_course, sensor_samples
 
+if TYPE_CHECKING:
+    from itt_planner.view.rerun_log import RideRecorder
+
 T0 = 1_779_000_000.0
 REPLAN_S = 10.0  # few solves keep the tests short; the benchmark replans at 1 Hz
 HORIZON_M = 500.0
 INPUTS = ("/itt/gps/fix", "/itt/speed", "/itt/power")
+#: Two replays of one log: the result and the output log of each.
+Runs = list[tuple[replay_mod.ReplayResult, Path]]
 OUTPUTS = {"/itt/advice": "itt_msgs/msg/Advice", "/itt/target_power": "itt_msgs/msg/TargetPower",
            "/itt/target_line": "nav_msgs/msg/Path"}
 
 
 @pytest.fixture(scope="module")
-def setup(tmp_path_factory: pytest.TempPathFactory) -> dict:
+def setup(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     """The hairpin test course, the typical rider's plan, and a simulated ride log of it."""
     tmp = tmp_path_factory.mktemp("replay")
     course = hairpin_course()
@@ -56,8 +63,8 @@ def setup(tmp_path_factory: pytest.TempPathFactory) -> dict:
             "n_in": len(samples), "planner": planner}
 
 
-def session_for(setup: dict, output: Path | None = None,
-                recorder: object | None = None) -> RideSession:
+def session_for(setup: dict[str, Any], output: Path | None = None,
+                recorder: RideRecorder | None = None) -> RideSession:
     """A session on a fresh engine; the shared planner forgets its warm start from the
     last replay."""
     setup["planner"].reset()
@@ -71,7 +78,7 @@ def session_for(setup: dict, output: Path | None = None,
 
 
 @pytest.fixture(scope="module")
-def two_runs(setup: dict) -> list[tuple[replay_mod.ReplayResult, Path]]:
+def two_runs(setup: dict[str, Any]) -> Runs:
     runs = []
     for i in range(2):
         out = setup["tmp"] / f"advice{i}.mcap"
@@ -84,13 +91,13 @@ def payloads(path: Path, topic: str) -> list[bytes]:
         return [m.data for _, c, m in make_reader(f).iter_messages(topics=[topic])]
 
 
-def test_advice_for_the_whole_ride(setup: dict, two_runs: list) -> None:
+def test_advice_for_the_whole_ride(setup: dict[str, Any], two_runs: Runs) -> None:
     result, out = two_runs[0]
     assert result.errors == [] and result.messages_in == setup["n_in"]
     duration = setup["plan"].finish_time_s
     assert result.ride_duration_s == pytest.approx(duration, abs=2.0)
     assert result.advice_out >= 0.9 * duration / REPLAN_S
-    advice = [v for t, _, v in RideLogReader(out) if t == "/itt/advice"]
+    advice = [v for _, _, v in RideLogReader(out) if isinstance(v, Advice)]
     assert len(advice) == result.advice_out
     # Advice until the end: the last one within a replan period of the last input.
     last_in = max(s for t, s, _ in RideLogReader(out) if t in INPUTS)
@@ -105,7 +112,7 @@ def test_advice_for_the_whole_ride(setup: dict, two_runs: list) -> None:
     assert np.all(np.isfinite(powers)) and 100 < np.median(powers) < 600
 
 
-def test_output_holds_every_input_and_output_message(setup: dict, two_runs: list,
+def test_output_holds_every_input_and_output_message(setup: dict[str, Any], two_runs: Runs,
                                                      tmp_path: Path) -> None:
     result, out = two_runs[0]
     for topic in INPUTS:  # copied byte for byte
@@ -124,7 +131,7 @@ def test_output_holds_every_input_and_output_message(setup: dict, two_runs: list
         expected[t] = (in_types[t], len(payloads(setup["log"], t)))
     assert result.topics_out == {t: c for t, (_, c) in expected.items()}
     got = check_all_readers(out, expected, tmp_path)
-    ours = [v for t, _, v in RideLogReader(out) if t == "/itt/advice"]
+    ours = [v for _, _, v in RideLogReader(out) if isinstance(v, Advice)]
     k = len(ours) // 2
     assert got["rosbags"]["/itt/advice"][k].target_power_w == ours[k].target_power_w
     assert got["mcap_ros2"]["/itt/target_power"][k].power_w == ours[k].target_power_w
@@ -137,14 +144,14 @@ def test_output_holds_every_input_and_output_message(setup: dict, two_runs: list
     assert meta["itt_ride"]["source"] == "simulated"
 
 
-def test_replay_is_deterministic(two_runs: list) -> None:
+def test_replay_is_deterministic(two_runs: Runs) -> None:
     (a, out_a), (b, out_b) = two_runs
     assert a.advice_out == b.advice_out
     for topic in ("/itt/advice", "/itt/target_power", "/itt/target_line"):
         assert payloads(out_a, topic) == payloads(out_b, topic)
 
 
-def test_damaged_input_replays_everything_before_the_damage(setup: dict,
+def test_damaged_input_replays_everything_before_the_damage(setup: dict[str, Any],
                                                              tmp_path: Path) -> None:
     # An unknown topic rides along: copied to the output, skipped by the engine.
     extra = tmp_path / "extra.mcap"
@@ -166,13 +173,13 @@ def test_damaged_input_replays_everything_before_the_damage(setup: dict,
     assert reader.errors == []  # the output itself is whole
     n_in = sum(1 for t, _, _ in read if t in INPUTS)
     assert n_in == result.messages_in - reader.skipped["/rosout"] > 0.4 * setup["n_in"]
-    advice = [v for t, _, v in read if t == "/itt/advice"]
+    advice = [v for _, _, v in read if isinstance(v, Advice)]
     assert len(advice) == result.advice_out >= 0.5 * setup["plan"].finish_time_s / REPLAN_S
     last_in = max(s for t, s, _ in read if t in INPUTS)
     assert advice[-1].stamp_s == pytest.approx(last_in, abs=REPLAN_S)
 
 
-def test_rerun_recording(setup: dict, tmp_path: Path) -> None:
+def test_rerun_recording(setup: dict[str, Any], tmp_path: Path) -> None:
     from rerun.chunk import RrdReader
 
     from itt_planner.view.rerun_log import RideRecorder
@@ -194,13 +201,13 @@ def test_rerun_recording(setup: dict, tmp_path: Path) -> None:
 def test_speed_paces_by_the_stamps(monkeypatch: pytest.MonkeyPatch) -> None:
     clock = [100.0]
     sleeps: list[float] = []
-    monkeypatch.setattr(replay_mod.time, "perf_counter", lambda: clock[0])
+    monkeypatch.setattr("itt_planner.session.replay.time.perf_counter", lambda: clock[0])
 
     def sleep(seconds: float) -> None:
         sleeps.append(seconds)
         clock[0] += seconds
 
-    monkeypatch.setattr(replay_mod.time, "sleep", sleep)
+    monkeypatch.setattr("itt_planner.session.replay.time.sleep", sleep)
     pacer = replay_mod._Pacer(10.0)
     for stamp in (T0, T0 + 1.0, T0 + 3.0):
         pacer.wait(stamp)
@@ -213,7 +220,7 @@ def test_speed_paces_by_the_stamps(monkeypatch: pytest.MonkeyPatch) -> None:
         ReplaySettings(speed=0.0)
 
 
-def test_cli_replay_json(setup: dict, tmp_path: Path) -> None:
+def test_cli_replay_json(setup: dict[str, Any], tmp_path: Path) -> None:
     data = setup["log"].read_bytes()
     short = tmp_path / "short.mcap"
     short.write_bytes(data[: len(data) // 5])  # a cut log: reported, still replayed

@@ -8,6 +8,7 @@ corner, W' spent on the climb), which is all the logging and plotting code needs
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -56,7 +57,7 @@ def make_plan(course: Course, ds_m: float = 5.0) -> Plan:
     w_prime = RIDER.w_prime_j - np.cumsum(np.maximum(power - RIDER.critical_power_w, 0.0)
                                           * np.gradient(t))
     n = 1.5 * np.sin(np.clip((s - 250.0) / 150.0, 0.0, 1.0) * math.pi)
-    arrays = {name: np.zeros_like(s) for name in PLAN_ARRAYS}
+    arrays: dict[str, Any] = {name: np.zeros_like(s) for name in PLAN_ARRAYS}
     arrays.update(s_m=s, t_s=t, n_m=n, phi_rad=phi, v_mps=v, power_w=power,
                   w_prime_j=w_prime, ay_mps2=ay, friction_use=np.abs(ay) / (0.8 * G))
     return Plan(model="3d", **arrays, solver_status="Solve_Succeeded", iterations=42,
@@ -73,7 +74,8 @@ def make_ride(course: Course, plan: Plan, *, rate_hz: float = 4.0
     advice says CP was refitted to `REFIT_CP_W` at 60 % of the ride and a re-solved plan
     (version 1) adopted at 80 %.
     """
-    events: list = []
+    events: list[GpsFix | WheelSpeed | PowerReading | RiderState | Advice
+                 | list[Diagnostic]] = []
     duration = plan.finish_time_s
     for k in range(int(duration * rate_hz)):
         t = k / rate_hz

@@ -27,22 +27,28 @@ input stamp: never the wall clock.
 
 from __future__ import annotations
 
+import time
 from dataclasses import fields
 from pathlib import Path
-import time
 from typing import Any
 
-from itt_msgs_py import deserialize, registry, serialize, topics
-from itt_msgs_py.convert import (advice_to_msg, diagnostics_to_msg, target_line_msg,
-                                 target_power_msg)
-from itt_planner.session.config import SessionConfig
-from itt_planner.session.ride_session import RideSession
-from itt_planner_ros.ros_types import message_class, qos_profile
 import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
-from rclpy.utilities import ok as rclpy_ok, try_shutdown
+from rclpy.utilities import ok as rclpy_ok
+from rclpy.utilities import try_shutdown
+
+from itt_msgs_py import deserialize, registry, serialize, topics
+from itt_msgs_py.convert import (
+    advice_to_msg,
+    diagnostics_to_msg,
+    target_line_msg,
+    target_power_msg,
+)
+from itt_planner.session.config import SessionConfig
+from itt_planner.session.ride_session import RideSession
+from itt_planner_ros.ros_types import message_class, qos_profile
 
 NODE_NAME = 'itt_pacing'
 #: Parameters of the node itself; the session's come from `SessionConfig`.
@@ -83,8 +89,8 @@ class PacingNode(Node):
                                                       qos_profile(t.qos))
                          for t in topics.OUTPUT_TOPICS}
             # The replan may take longer than a tick: its own group keeps inputs flowing.
-            group = MutuallyExclusiveCallbackGroup()  # type: ignore[no-untyped-call]
-            self.create_timer(value['tick_period_s'], self._tick, callback_group=group)
+            self.create_timer(value['tick_period_s'], self._tick,
+                              callback_group=MutuallyExclusiveCallbackGroup())
         except BaseException:
             self.session.close()  # the output log is finished even when start-up fails
             raise
@@ -93,6 +99,7 @@ class PacingNode(Node):
             f' plan {self.session.plan.solver_status}, replan every {config.replan_period_s} s')
 
     def _log(self) -> Any:
+        # rclpy's untyped calls are allowed (pyproject) but not through a subclass.
         return self.get_logger()  # type: ignore[no-untyped-call]
 
     def _on_input(self, entry: registry.SampleTopic[Any]) -> Any:
@@ -193,7 +200,7 @@ def run(args: list[str] | None = None, *, namespace: str = topics.DEFAULT_NAMESP
             node.save_state()
             node.session.close()
             node.destroy_node()  # type: ignore[no-untyped-call]
-        try_shutdown()  # type: ignore[no-untyped-call]
+        try_shutdown()
     return result
 
 

@@ -26,12 +26,12 @@ running with `use_sim_time`, from the start time while waiting for subscribers.
 
 from __future__ import annotations
 
-from collections import Counter
-from dataclasses import dataclass, field
 import logging
-from pathlib import Path
 import threading
 import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, NamedTuple
 
 from builtin_interfaces.msg import Time
@@ -48,10 +48,10 @@ from itt_planner.errors import RideLogError
 from itt_planner.logs.ridelog import MESSAGE_ENCODING, RideLogReader
 from itt_planner_ros.ros_types import (
     DEFAULT_QOS,
+    RosTypeError,
     edge_node,
     message_class,
     replay_qos,
-    RosTypeError,
 )
 
 log = logging.getLogger(__name__)
@@ -59,8 +59,7 @@ log = logging.getLogger(__name__)
 NODE_NAME = 'itt_player'
 CLOCK_TOPIC = '/clock'
 #: rclcpp::ClockQoS, what `ros2 bag play --clock` offers: best effort, keep last 1.
-CLOCK_QOS = QoSProfile(  # type: ignore[no-untyped-call]
-    depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 #: Waiting for subscribers, play this long after the last one matched: a publisher can
 #: see a subscriber before that subscriber knows the publisher, and best-effort messages
 #: sent in between are dropped by the subscriber.

@@ -32,12 +32,12 @@ first subscription (and the first offers recorded), as with rosbag2.
 
 from __future__ import annotations
 
-from collections import Counter
-from dataclasses import dataclass, field
 import logging
-from pathlib import Path
 import threading
 import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from rclpy.context import Context
@@ -48,14 +48,14 @@ from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 
 from itt_msgs_py import msgdef, typestore
-from itt_planner.logs.ridelog import MESSAGE_ENCODING, RawRecord, SCHEMA_ENCODING
+from itt_planner.logs.ridelog import MESSAGE_ENCODING, SCHEMA_ENCODING, RawRecord
 from itt_planner.logs.ridelog_writer import RideLogWriter
 from itt_planner_ros.ros_types import (
+    RosTypeError,
     edge_node,
     message_class,
     offers_yaml,
     request_qos,
-    RosTypeError,
 )
 
 log = logging.getLogger(__name__)
@@ -69,8 +69,7 @@ RECORD_DEPTH = 200
 DRAIN_LIMIT_S = 1.0
 CLOCK_TOPIC = '/clock'
 #: rclcpp::ClockQoS, as a node with `use_sim_time` subscribes to `/clock`.
-CLOCK_QOS = QoSProfile(  # type: ignore[no-untyped-call]
-    depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 
 @dataclass(frozen=True)
@@ -187,7 +186,7 @@ class _Recorder:
         for topic, types in self.node.get_topic_names_and_types():
             if topic in self._subscriptions or topic in self.stats.skipped:
                 continue
-            if not (topic in self._wanted or self.settings.all_topics and not _hidden(topic)):
+            if not (topic in self._wanted or (self.settings.all_topics and not _hidden(topic))):
                 continue
             offers = [info.qos_profile
                       for info in self.node.get_publishers_info_by_topic(topic)]

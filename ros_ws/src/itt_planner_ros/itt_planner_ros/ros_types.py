@@ -28,9 +28,9 @@
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-import importlib
 from typing import Any
 
 import rclpy
@@ -96,7 +96,7 @@ def message_class(msgtype: str) -> Any:
 
 def qos_profile(qos: topics.QoS) -> QoSProfile:
     """Return the QoSProfile of a topic's plain QoS."""
-    return QoSProfile(  # type: ignore[no-untyped-call]
+    return QoSProfile(
         depth=qos.depth,
         reliability=(ReliabilityPolicy.BEST_EFFORT
                      if qos.reliability is topics.Reliability.BEST_EFFORT
@@ -165,7 +165,7 @@ def replay_qos(offered_yaml: str, fallback: topics.QoS = DEFAULT_QOS) -> QoSProf
     deadlines = [_duration(o.deadline) for o in offers]
     lifespans = [_duration(o.lifespan) for o in offers]
     leases = [_duration(o.liveliness_lease_duration) for o in offers]
-    return QoSProfile(  # type: ignore[no-untyped-call]
+    return QoSProfile(
         history=HistoryPolicy.KEEP_LAST, depth=max(depths, default=default.depth),
         reliability=ReliabilityPolicy[reliability], durability=DurabilityPolicy[durability],
         liveliness=LivelinessPolicy[liveliness],
@@ -185,7 +185,7 @@ def request_qos(offers: Sequence[QoSProfile], depth: int) -> QoSProfile:
         o.reliability is ReliabilityPolicy.RELIABLE for o in offers)
     latched = bool(offers) and all(
         o.durability is DurabilityPolicy.TRANSIENT_LOCAL for o in offers)
-    return QoSProfile(  # type: ignore[no-untyped-call]
+    return QoSProfile(
         history=HistoryPolicy.KEEP_LAST, depth=depth,
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=(DurabilityPolicy.TRANSIENT_LOCAL if latched
@@ -213,7 +213,7 @@ def edge_node(name: str, context: Context | None = None) -> Iterator[Node]:
         try:
             yield node
         finally:
-            node.destroy_node()  # type: ignore[no-untyped-call]
+            node.destroy_node()
     finally:
         if own:
             context.try_shutdown()
