@@ -72,8 +72,7 @@ def main() -> None:
         # Every advice a horizon solve (no advising the plan itself while the rider is on
         # it): this measures the replan latency, and a nominal race stays on the plan.
         res = simulate_ride(course, RIDER, plan, planner=planner, seed=0,
-                            engine_settings=EngineSettings(horizon_m=horizon,
-                                                           on_plan_band_j=0.0),
+                            engine_settings=EngineSettings(on_plan_band_j=0.0),
                             max_time_s=max_time)
         wall = time.perf_counter() - t0
         warm = _stats(res.solve_times_s)

@@ -27,17 +27,19 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))  # the synthetic ride is shared with the tests
 
 import rerun as rr  # noqa: E402
+from support.rerun_feed import Event, record  # noqa: E402
+from support.synthetic_ride import RIDER, make_plan, make_ride  # noqa: E402
 
+from itt_planner.course.geometry import Course  # noqa: E402
 from itt_planner.course.loader import load_course  # noqa: E402
+from itt_planner.ocp.plan import Plan  # noqa: E402
 from itt_planner.view.rerun_log import RideRecorder  # noqa: E402
 from itt_planner.view.rerun_sink import RerunSink, open_recording  # noqa: E402
-from support.rerun_feed import record  # noqa: E402
-from support.synthetic_ride import RIDER, make_plan, make_ride  # noqa: E402
 
 LIMIT_BYTES = 50 * 1024 * 1024
 
 
-def run(sink: str, events: list | None, course, plan) -> float:  # noqa: ANN001
+def run(sink: str, events: list[Event] | None, course: Course, plan: Plan) -> float:
     start = time.perf_counter()
     if sink == "memory":
         rec = rr.RecordingStream("itt_planner")

@@ -4,6 +4,7 @@ figures `itt-planner simulate` prints."""
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 
@@ -23,7 +24,7 @@ def compare_policies(course: Course, rider: Rider, plan: Plan, *,
                      engine_settings: EngineSettings = EngineSettings(),
                      planner: object | None = None,
                      behaviour: RiderBehaviour = RiderBehaviour(),
-                     **kwargs: object) -> dict[str, object]:
+                     **kwargs: object) -> dict[str, Any]:
     """The three policies on the same truth, and the figures `itt-planner simulate` prints.
 
     `behaviour` and `kwargs` go to `simulate_ride` (sensors, scenario settings, dt_s).

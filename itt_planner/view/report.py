@@ -19,6 +19,7 @@ import math
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import matplotlib as mpl
 import numpy as np
@@ -68,10 +69,10 @@ def _clock(seconds: float) -> str:
     return f"{int(seconds // 60)}:{seconds % 60:04.1f}"
 
 
-def summary(plan: Plan, course: Course, rider: Rider | None) -> dict[str, object]:
+def summary(plan: Plan, course: Course, rider: Rider | None) -> dict[str, Any]:
     """The figures of the report's table (edge units: km, km/h, min:s, kJ)."""
     finish = plan.finish_time_s
-    out: dict[str, object] = {
+    out: dict[str, Any] = {
         "course": course.name,
         "length_km": round(course.length_m / 1000, 3),
         "corners": len(course.corners),
@@ -93,12 +94,12 @@ def summary(plan: Plan, course: Course, rider: Rider | None) -> dict[str, object
 
 
 def ride_summary(trace: RideTrace, plan: Plan, course: Course,
-                 rider: Rider | None) -> dict[str, object]:
+                 rider: Rider | None) -> dict[str, Any]:
     """The figures of a ride report's table (edge units: km, km/h, min:s)."""
     finish = actual_finish_s(trace, course)
     statuses = Counter(trace.solver_status)
     events = belief_events(trace)
-    out: dict[str, object] = {
+    out: dict[str, Any] = {
         "log": str(trace.path),
         "input": trace.metadata.get("input", ""),
         "course": course.name,
@@ -251,7 +252,7 @@ def draw_corner(fig: Figure | SubFigure, plan: Plan, course: Course, corner: Cor
     kmh = plan.v_mps[k] * MPS_TO_KMH
     segments = np.stack([np.column_stack([px[:-1], py[:-1]]),
                          np.column_stack([px[1:], py[1:]])], axis=1)
-    lines = LineCollection(segments, cmap="viridis", lw=3)
+    lines = LineCollection(list(segments), cmap="viridis", lw=3)
     lines.set_array(0.5 * (kmh[:-1] + kmh[1:]))
     ax_map.add_collection(lines)
     fig.colorbar(lines, ax=ax_map, label="planned speed (km/h)", shrink=0.8)
@@ -343,8 +344,9 @@ def render_png(plan: Plan, course: Course, rider: Rider | None = None,
     top_in = 8.0 if ride is None else 10.0
     with mpl.rc_context({"figure.constrained_layout.use": True}):
         fig = Figure(figsize=(11, top_in + 4.2 * len(corners)))
-        top, *rest = fig.subfigures(1 + len(corners), 1,
-                                    height_ratios=[top_in] + [4.2] * len(corners))
+        # squeeze=False: always an array of subfigures (one column), even for one row.
+        top, *rest = fig.subfigures(1 + len(corners), 1, squeeze=False,
+                                    height_ratios=[top_in] + [4.2] * len(corners))[:, 0]
         _draw_top(top, plan, course, rider, ride)
         for sub, corner in zip(rest, corners, strict=True):
             draw_corner(sub, plan, course, corner, settings.corner_margin_m, ride)

@@ -184,19 +184,6 @@ class RideRecorder:
                         f"{type(sample).__name__}: no view for this sample type, not drawn",
                         level=rr.TextLogLevel.WARN))
 
-    # Until the session calls log_sample (issue 16, helper H1): the old entry points.
-    def log_gps(self, fix: GpsFix, state: RiderState | None = None) -> None:
-        """Deprecated by `log_sample`; removed once the session calls it."""
-        self.log_sample(fix, state)
-
-    def log_speed(self, sample: WheelSpeed) -> None:
-        """Deprecated by `log_sample`; removed once the session calls it."""
-        self.log_sample(sample)
-
-    def log_power(self, sample: PowerReading) -> None:
-        """Deprecated by `log_sample`; removed once the session calls it."""
-        self.log_sample(sample)
-
     # The sample views: called with the lock held, `state` as given to log_sample.
     def _view_gps(self, fix: GpsFix, state: RiderState | None) -> None:
         """A raw GPS fix on the map and on the track."""
@@ -308,11 +295,13 @@ class RideRecorder:
         where = f"at {advice.state.s_m / 1000:.2f} km"
         lines = []
         if math.isfinite(last[0]) and cp != last[0]:
-            lines.append((f"CP in use {last[0]:.0f} -> {cp:.0f} W {where} (refit; see "
-                          "itt_planner/rider_model)", rr.TextLogLevel.WARN))
+            text = (f"CP in use {last[0]:.0f} -> {cp:.0f} W {where} (refit; see "
+                    "itt_planner/rider_model)")
+            lines.append((text, rr.TextLogLevel.WARN))
         if now[1] != last[1]:
-            lines.append((f"plan {now[1]} adopted {where} (the rest of the course re-solved "
-                          f"for CP {cp:.0f} W)", rr.TextLogLevel.INFO))
+            text = (f"plan {now[1]} adopted {where} (the rest of the course re-solved for "
+                    f"CP {cp:.0f} W)")
+            lines.append((text, rr.TextLogLevel.INFO))
         return lines
 
     def _advice_change(self, advice: Advice) -> str | None:

@@ -15,10 +15,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from itt_msgs_py import topics
+from itt_msgs_py import registry
 from itt_planner.course.geometry import Course
 from itt_planner.errors import IttError
 from itt_planner.live.advice import Advice
@@ -98,28 +99,25 @@ def load_ride_trace(path: str | Path) -> RideTrace:
     """
     path = Path(path)
     reader = RideLogReader(path)
-    power: list[PowerReading] = []
-    speed: list[WheelSpeed] = []
-    fixes: list[GpsFix] = []
-    advice: list[Advice] = []
+    # The records the report draws, by type (a sensor it does not draw only counts for
+    # the ride's span).
+    drawn: dict[type, list[Any]] = {PowerReading: [], WheelSpeed: [], GpsFix: [], Advice: []}
     first, last = math.inf, -math.inf
     for _topic, stamp_s, value in reader:
-        if isinstance(value, GpsFix | WheelSpeed | PowerReading):  # the ride's own span
+        if registry.is_sample(value):  # the ride's own span
             first, last = min(first, stamp_s), max(last, stamp_s)
-        if isinstance(value, PowerReading):
-            power.append(value)
-        elif isinstance(value, WheelSpeed):
-            speed.append(value)
-        elif isinstance(value, GpsFix):
-            fixes.append(value)
-        elif isinstance(value, Advice):
-            advice.append(value)
+        if type(value) in drawn:
+            drawn[type(value)].append(value)
+    power: list[PowerReading] = drawn[PowerReading]
+    speed: list[WheelSpeed] = drawn[WheelSpeed]
+    fixes: list[GpsFix] = drawn[GpsFix]
+    advice: list[Advice] = drawn[Advice]
     if not advice:
         raise IttError(f"{path}: no advice in this log; the report of a ride needs a replay "
                        "output: run `itt-planner replay LOG --course C --rider R --out "
                        "OUT.mcap` and report OUT.mcap")
     if not power:
-        raise IttError(f"{path}: no power samples on {topics.POWER.name()}")
+        raise IttError(f"{path}: no power samples on {registry.POWER.name()}")
     advice.sort(key=lambda a: a.stamp_s)
     state_t = np.array([a.state.stamp_s for a in advice])
     state_s = np.array([a.state.s_m for a in advice])
@@ -188,7 +186,8 @@ def _distance_at(t_s: np.ndarray, state_t_s: np.ndarray, state_s_m: np.ndarray,
     period_s = float(state_t_s[-1] - state_t_s[-2]) if len(state_t_s) > 1 else 0.0
     after = np.clip(t_s - state_t_s[-1], 0.0, period_s)
     ahead = s + after * state_v_mps[-1]
-    return np.where(after > 0, np.minimum(ahead, max(reach_m, state_s_m[-1])), s)
+    s_m: np.ndarray = np.where(after > 0, np.minimum(ahead, max(reach_m, state_s_m[-1])), s)
+    return s_m
 
 
 def actual_finish_s(trace: RideTrace, course: Course) -> float | None:

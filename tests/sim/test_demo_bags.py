@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
+from itt_planner.live.advice import Advice
 from itt_planner.live.course_replan import CourseReplanSettings
 from itt_planner.live.engine import ON_PLAN
 from itt_planner.logs.ridelog import METADATA_NAME, read_ride_log
@@ -36,7 +37,9 @@ def test_demo_bag_is_small_simulated_and_complete(name: str) -> None:
     with path.open("rb") as fh:
         reader = make_reader(fh)
         meta = {m.name: m.metadata for m in reader.iter_metadata()}
-        channels = reader.get_summary().channels.values()
+        summary = reader.get_summary()
+        assert summary is not None
+        channels = summary.channels.values()
         # Sensors offered best-effort, as ros2 bag play must offer them again.
         assert all("reliability: best_effort" in c.metadata["offered_qos_profiles"]
                    for c in channels)
@@ -76,7 +79,7 @@ def test_make_demo_bag_replays_with_advice_for_the_whole_ride(tmp_path: Path) ->
     assert result.advice_out >= result.ride_duration_s / 10 - 2
     _assert_advice_covers_ride(tmp_path / "advice.mcap", bag, 10.0)
     statuses = [a.solver_status for name, _, a in read_ride_log(tmp_path / "advice.mcap")
-                if name == "/itt/advice"]
+                if name == "/itt/advice" and isinstance(a, Advice)]
     assert statuses[0] == ON_PLAN
     first_solve = next(i for i, st in enumerate(statuses) if st != ON_PLAN)
     assert first_solve > len(statuses) / 4  # on the plan until the rider runs dry

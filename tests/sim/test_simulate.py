@@ -10,13 +10,17 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 import yaml
+from support.hairpin_fixtures import PLAN_CONDITIONS, RIDER
 from typer.testing import CliRunner
 
 from itt_planner.cli import app
+from itt_planner.course.geometry import Course
 from itt_planner.errors import RiderError
 from itt_planner.live.course_replan import CourseReplanSettings
 from itt_planner.live.engine import EngineSettings
@@ -26,6 +30,7 @@ from itt_planner.ocp.cache import load_or_solve
 from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.ocp.horizon import HorizonPlanner
 from itt_planner.ocp.horizon_settings import HorizonSettings
+from itt_planner.ocp.plan import Plan
 from itt_planner.sim import (
     Policy,
     RiderBehaviour,
@@ -35,7 +40,6 @@ from itt_planner.sim import (
     planning_conditions,
     simulate_ride,
 )
-from support.hairpin_fixtures import PLAN_CONDITIONS, RIDER
 
 FAST_HORIZON = HorizonSettings(horizon_m=400.0, n_intervals=50, max_wall_time_s=30.0)
 #: Replan every 2 s; no overrun judged on a loaded 2-core machine; the rest of the
@@ -44,7 +48,7 @@ FAST_ENGINE = EngineSettings(replan_period_s=2.0, max_solve_time_s=30.0,
                              course_replan=CourseReplanSettings(min_remaining_m=400.0))
 
 
-def _compare(course, plan, scenario):
+def _compare(course: Course, plan: Plan, scenario: str) -> dict[str, Any]:
     return compare_policies(course, RIDER, plan, scenario=scenario, seed=1,
                             engine_settings=FAST_ENGINE,
                             planner=HorizonPlanner(course, RIDER, plan,
@@ -52,7 +56,7 @@ def _compare(course, plan, scenario):
                                                    settings=FAST_HORIZON))
 
 
-def test_sensor_model(course):
+def test_sensor_model(course: Course) -> None:
     """1 Hz GPS with ~3 m error per axis, a dropout, 1 Hz wheel speed and power; power
     meters read zero while braking."""
     settings = SensorSettings(dropouts=((100.0, 60.0),))
@@ -66,7 +70,8 @@ def test_sensor_model(course):
         samples += out
         for smp in out:
             if isinstance(smp, GpsFix):
-                x, y, _ = course.from_geodetic(smp.lat_deg, smp.lon_deg, smp.alt_m)
+                x, y, _ = course.from_geodetic(np.asarray(smp.lat_deg), np.asarray(smp.lon_deg),
+                                               np.asarray(smp.alt_m))
                 xt, yt, _ = course.enu_at(s, 0.0)
                 errors.append((float(x - xt), float(y - yt)))
     gps = [x for x in samples if isinstance(x, GpsFix)]
@@ -80,7 +85,7 @@ def test_sensor_model(course):
     assert stamps == sorted(stamps)
 
 
-def test_planning_conditions_use_the_riders_lateral_grip():
+def test_planning_conditions_use_the_riders_lateral_grip() -> None:
     """The planner believes the truth's road and air with the lateral grip the rider uses."""
     truth = Conditions(mu_x=0.9, mu_y=0.8, wind_speed_mps=2.0, wind_from_rad=1.0)
     belief = planning_conditions(truth, RiderBehaviour(grip_lateral=0.9))
@@ -91,7 +96,7 @@ def test_planning_conditions_use_the_riders_lateral_grip():
             truth.with_lateral_grip(bad)
 
 
-def test_time_domain_model_reproduces_the_plan(course, plan):
+def test_time_domain_model_reproduces_the_plan(course: Course, plan: Plan) -> None:
     """Following the full-course plan in time (lag, noise, path-following controller),
     the 3D model ends within 1 % of the OCP's time and stays near the planned line.
     (Measured +0.36 to +0.61 % over seeds 1-4 with the plan solved for the grip the rider
@@ -108,7 +113,7 @@ def test_time_domain_model_reproduces_the_plan(course, plan):
     assert np.all(np.diff(res.s_m) >= 0)
 
 
-def test_scenarios_change_the_truth_not_the_plan(course, plan):
+def test_scenarios_change_the_truth_not_the_plan(course: Course, plan: Plan) -> None:
     nominal = simulate_ride(course, RIDER, plan, policy=Policy.EVEN_CP, seed=1)
     weak = simulate_ride(course, RIDER, plan, policy=Policy.EVEN_CP, seed=1,
                          scenario="cp-overestimated")
@@ -125,7 +130,7 @@ def test_scenarios_change_the_truth_not_the_plan(course, plan):
 
 @pytest.mark.parametrize("scenario", ["nominal", "hot-start", "headwind"])
 @pytest.mark.parametrize("policy", [Policy.OPEN_LOOP, Policy.EVEN_CP])
-def test_truth_respects_grip(course, plan, policy, scenario):
+def test_truth_respects_grip(course: Course, plan: Plan, policy: str, scenario: str) -> None:
     """The simulated truth never uses more than the friction ellipse C16 allows, in the
     hairpin, the S-bend and on the way in and out of them (lean transients included),
     whatever the rider follows (the replanned rides: in the compare tests below)."""
@@ -134,7 +139,7 @@ def test_truth_respects_grip(course, plan, policy, scenario):
     assert res.friction_use.max() <= 1.0 + 1e-3
 
 
-def test_nominal_replanned_close_to_the_optimum(course, plan):
+def test_nominal_replanned_close_to_the_optimum(course: Course, plan: Plan) -> None:
     """Belief = truth (the plan and the horizon are solved for the grip the rider uses).
     Within the issue's 1 % of that optimum (measured +0.26 to +0.52 % over seeds 1-4):
     the rider stays on the plan, so the advice is the plan (engine: event-triggered
@@ -158,7 +163,7 @@ def test_nominal_replanned_close_to_the_optimum(course, plan):
     "acceleration bound, course-scaled budgets, advice shaping) the replanned ride is "
     "0.226 s behind the blind plan on seed 1 (was -0.009 s); not the advice rate limit "
     "(the same without it); cause not found yet"))
-def test_hot_start_replanned_beats_open_loop(course, plan):
+def test_hot_start_replanned_beats_open_loop(course: Course, plan: Plan) -> None:
     """The rider burns W' over the first third; the blind plan then runs dry and
     finishes with W' it could not place, the replanned ride re-budgets it (the horizon,
     then the rest of the course re-solved from the rider's state). On this short course
@@ -172,7 +177,7 @@ def test_hot_start_replanned_beats_open_loop(course, plan):
     assert out["open_loop"]["w_prime_end_j"] > out["replanned"]["w_prime_end_j"]
 
 
-def test_cp_overestimated_is_detected(course, plan):
+def test_cp_overestimated_is_detected(course: Course, plan: Plan) -> None:
     """True CP 5 % below the belief (418 W vs 440 W): the engine sees the rider fail to
     hold advice above CP, refits CP from the power history to within a few W of the
     truth and replans with it. It does NOT beat the blind plan here (measured -0.000,
@@ -189,7 +194,7 @@ def test_cp_overestimated_is_detected(course, plan):
 
 
 @pytest.mark.slow
-def test_headwind(course, plan):
+def test_headwind(course: Course, plan: Plan) -> None:
     """W' stays >= 0 and the replanned ride beats even pacing."""
     out = _compare(course, plan, "headwind")
     for policy in ("replanned", "open_loop", "even_cp"):
@@ -198,7 +203,7 @@ def test_headwind(course, plan):
 
 
 @pytest.mark.slow
-def test_verona_like_nominal(request):
+def test_verona_like_nominal(request: pytest.FixtureRequest) -> None:
     """The whole verona-like race in closed loop (1 km horizon, replan every 1 s), the
     plan solved for the grip the rider uses. Measured 2026-11-30 (evening) with the
     horizon's wall cap raised to 30 s (no load-dependent fallbacks): replanned 1267.86 /
@@ -219,7 +224,7 @@ def test_verona_like_nominal(request):
 
 
 @pytest.mark.slow
-def test_verona_like_hot_start(request):
+def test_verona_like_hot_start(request: pytest.FixtureRequest) -> None:
     """The whole verona-like race after a hot start (the first 2 km at 115 % of the
     plan's power, advice ignored): the replanned ride beats the blind plan, which runs
     dry on the climb at km 7-8. Measured 2026-11-30 (evening), seeds 0 / 1: +1.68 /
@@ -240,7 +245,7 @@ def test_verona_like_hot_start(request):
     assert out["replanned"]["max_friction_use"] <= 1.0 + 1e-3
 
 
-def test_cli_simulate_json(tmp_path):
+def test_cli_simulate_json(tmp_path: Path) -> None:
     """The CLI on a 700 m course (a straight and one hairpin), so the plan and the ~40
     replans take seconds."""
     spec = {"name": "mini", "segments": [

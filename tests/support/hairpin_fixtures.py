@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import pytest
 
+from itt_planner.course.geometry import Course
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import PRESETS
 from itt_planner.ocp.cache import load_or_solve
 from itt_planner.ocp.course_settings import OcpSettings
+from itt_planner.ocp.plan import Plan
 from itt_planner.sim import hairpin_course, planning_conditions
 
 RIDER = PRESETS["paper"]
@@ -23,11 +25,11 @@ PLAN_CONDITIONS = planning_conditions(Conditions())
 
 
 @pytest.fixture(scope="module")
-def course():
+def course() -> Course:
     return hairpin_course()
 
 
 @pytest.fixture(scope="module")
-def plan(course, request):
+def plan(course: Course, request: pytest.FixtureRequest) -> Plan:
     return load_or_solve(course, RIDER, PLAN_CONDITIONS, OcpSettings(), "3d",
                          cache_dir=request.config.cache.mkdir("itt_plans"))

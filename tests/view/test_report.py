@@ -15,16 +15,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
+from support.synthetic_ride import RIDER, make_course, make_plan
 from typer.testing import CliRunner
 
 from itt_planner.cli import app
 from itt_planner.course.geometry import Course
 from itt_planner.errors import IttError
-from itt_planner.live.advice import Cue
+from itt_planner.live.advice import Advice, Cue
+from itt_planner.live.samples import PowerReading
 from itt_planner.logs.ridelog import read_ride_log
 from itt_planner.ocp.plan import Plan
-from itt_planner.session.replay import replay_ride
 from itt_planner.session.config import SessionConfig
+from itt_planner.session.replay import replay_ride
 from itt_planner.view.report import (
     render_html,
     ride_summary,
@@ -33,9 +35,10 @@ from itt_planner.view.report import (
     write_report,
 )
 from itt_planner.view.ride_report import RideTrace, belief_events, load_ride_trace
-from support.synthetic_ride import RIDER, make_course, make_plan
 
 DEMO_BAG = Path(__file__).parents[2] / "bags" / "typical_verona-like.mcap"
+#: (replay output, plan cache, ride duration) of the `replayed` fixture.
+Replayed = tuple[Path, Path, float]
 
 
 @pytest.fixture(scope="module")
@@ -120,7 +123,7 @@ def test_cli_report_errors(plan: Plan, tmp_path: Path) -> None:
 
 def test_demo_course_named_in_plan_header(tmp_path: Path) -> None:
     """A plan on the verona-like demo: the course is found from the plan's header."""
-    from itt_planner.course.loader import load_course  # noqa: PLC0415
+    from itt_planner.course.loader import load_course
 
     demo = load_course("verona-like")
     plan = make_plan(demo, ds_m=10.0)
@@ -178,7 +181,7 @@ def test_ride_report_shows_refits_and_plan_adoptions(plan: Plan, course: Course)
 
 
 @pytest.fixture(scope="module")
-def replayed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, float]:
+def replayed(tmp_path_factory: pytest.TempPathFactory) -> Replayed:
     """(replay output, plan cache, ride duration) of the typical rider's demo bag."""
     tmp = tmp_path_factory.mktemp("ride")
     out, cache = tmp / "replayed.mcap", tmp / "cache"
@@ -189,7 +192,7 @@ def replayed(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, floa
     return out, cache, result.ride_duration_s
 
 
-def test_ride_report_html_compares_the_ride_with_the_plan(replayed: tuple, tmp_path: Path
+def test_ride_report_html_compares_the_ride_with_the_plan(replayed: Replayed, tmp_path: Path
                                                           ) -> None:
     log, cache, duration_s = replayed
     out = tmp_path / "ride.html"
@@ -199,14 +202,16 @@ def test_ride_report_html_compares_the_ride_with_the_plan(replayed: tuple, tmp_p
     table = json.loads(result.stdout)
     # Course, rider and model come from the replay's metadata.
     assert (table["course"], table["rider"], table["model"]) == ("verona-like", "typical", "1d")
-    power = [p.power_w for topic, _, p in read_ride_log(log) if topic == "/itt/power"]
+    power = [p.power_w for topic, _, p in read_ride_log(log)
+             if topic == "/itt/power" and isinstance(p, PowerReading)]
     assert table["average_power_w"] == pytest.approx(np.mean(power), abs=1.0)
     assert table["max_power_w"] == pytest.approx(max(power), abs=0.1)
     # The simulated rider stops logging at the finish line.
     assert table["finish_time_s"] == pytest.approx(duration_s, abs=5.0)
     assert table["finish_vs_plan_s"] == pytest.approx(
         table["finish_time_s"] - table["plan_finish_time_s"], abs=0.02)
-    advice = [a for topic, _, a in read_ride_log(log) if topic == "/itt/advice"]
+    advice = [a for topic, _, a in read_ride_log(log)
+              if topic == "/itt/advice" and isinstance(a, Advice)]
     assert table["advice"] == len(advice)
     assert table["fallbacks"] == sum(a.fallback for a in advice)
     assert sum(table["solver_status"].values()) == len(advice)
@@ -219,7 +224,7 @@ def test_ride_report_html_compares_the_ride_with_the_plan(replayed: tuple, tmp_p
         assert np.asarray(image.convert("L"), dtype=float).std() > 10
 
 
-def test_ride_trace_places_samples_by_distance(replayed: tuple) -> None:
+def test_ride_trace_places_samples_by_distance(replayed: Replayed) -> None:
     trace = load_ride_trace(replayed[0])
     assert trace.duration_s == pytest.approx(replayed[2])
     # Distance never runs backwards in time and covers the course (16.8 km).
@@ -236,7 +241,7 @@ def test_ride_trace_places_samples_by_distance(replayed: tuple) -> None:
     assert set(np.unique(trace.cue)) <= {int(c) for c in Cue}
 
 
-def test_ride_report_png(replayed: tuple, tmp_path: Path) -> None:
+def test_ride_report_png(replayed: Replayed, tmp_path: Path) -> None:
     log, cache, _ = replayed
     out = tmp_path / "ride.png"
     result = CliRunner().invoke(app, ["report", str(log), "-o", str(out), "--cache-dir",

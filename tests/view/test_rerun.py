@@ -5,19 +5,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 import rerun as rr
 from rerun.chunk import ChunkStore, RrdReader
-
-from itt_planner.errors import IttError
-from itt_planner.live.advice import Advice, Diagnostic
-from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.model.state import RiderState
-from itt_planner.view.rerun_log import MAX_HORIZON_POINTS, TRACK_SEGMENT, RideRecorder
-from itt_planner.view.rerun_scene import MPS_TO_KMH
-from itt_planner.view.rerun_sink import RerunSink, open_recording
 from support.rerun_feed import record
 from support.synthetic_ride import (
     REFIT_CP_W,
@@ -29,9 +22,17 @@ from support.synthetic_ride import (
     make_ride,
 )
 
+from itt_planner.errors import IttError
+from itt_planner.live.advice import Advice, Diagnostic, Level
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
+from itt_planner.model.state import RiderState
+from itt_planner.view.rerun_log import MAX_HORIZON_POINTS, TRACK_SEGMENT, RideRecorder
+from itt_planner.view.rerun_scene import MPS_TO_KMH
+from itt_planner.view.rerun_sink import RerunSink, open_recording
+
 
 @pytest.fixture(scope="module")
-def ride(tmp_path_factory: pytest.TempPathFactory) -> dict:
+def ride(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     course = make_course()
     plan = make_plan(course)
     events = make_ride(course, plan)
@@ -51,11 +52,12 @@ def ride(tmp_path_factory: pytest.TempPathFactory) -> dict:
             "reader": reader, "recorder": recorder}
 
 
-def column(store: ChunkStore, timeline: str, entity: str, component: str) -> tuple[list, list]:
+def column(store: ChunkStore, timeline: str, entity: str, component: str
+           ) -> tuple[list[Any], list[Any]]:
     """(index values, component values) of every logged row of `entity` that has `component`
     and `timeline`, sorted by that timeline. Read chunk by chunk: the dataframe view would
     merge rows that share an index value."""
-    rows: list[tuple[object, object]] = []
+    rows: list[tuple[Any, Any]] = []
     for chunk in store.stream().filter(content=entity).to_chunks():
         batch = chunk.to_record_batch()
         if chunk.entity_path != entity or component not in batch.schema.names:
@@ -68,7 +70,7 @@ def column(store: ChunkStore, timeline: str, entity: str, component: str) -> tup
     return [r[0] for r in rows], [r[1] for r in rows]
 
 
-def static_value(store: ChunkStore, entity: str, component: str) -> list:
+def static_value(store: ChunkStore, entity: str, component: str) -> Any:
     for chunk in store.stream().to_chunks():
         batch = chunk.to_record_batch()
         if chunk.entity_path == entity and chunk.is_static and component in batch.schema.names:
@@ -80,16 +82,16 @@ def texts(store: ChunkStore, entity: str, component: str = "TextLog:text") -> li
     return [v[0] for v in column(store, "ride_time", entity, component)[1]]
 
 
-def scalars(store: ChunkStore, timeline: str, entity: str) -> tuple[list, np.ndarray]:
+def scalars(store: ChunkStore, timeline: str, entity: str) -> tuple[list[Any], np.ndarray]:
     index, values = column(store, timeline, entity, "Scalars:scalars")
     return index, np.array([v[0] for v in values])
 
 
-def of_type(events: list, kind: type) -> list:
+def of_type(events: list[Any], kind: type) -> list[Any]:
     return [e for e in events if isinstance(e, kind)]
 
 
-def test_file_has_recording_and_blueprint(ride: dict) -> None:
+def test_file_has_recording_and_blueprint(ride: dict[str, Any]) -> None:
     reader: RrdReader = ride["reader"]
     [recording] = reader.recordings()
     assert recording.application_id == "itt_planner"
@@ -98,7 +100,7 @@ def test_file_has_recording_and_blueprint(ride: dict) -> None:
     assert len(reader.blueprints()) == 2
 
 
-def test_actual_power_and_speed_equal_the_samples(ride: dict) -> None:
+def test_actual_power_and_speed_equal_the_samples(ride: dict[str, Any]) -> None:
     power = of_type(ride["events"], PowerReading)
     index, values = scalars(ride["store"], "ride_time", "/plots/power/actual")
     assert len(values) == len(power)  # the NaN sample was skipped
@@ -113,7 +115,7 @@ def test_actual_power_and_speed_equal_the_samples(ride: dict) -> None:
     assert len(notes) == 1 and "non-finite" in notes[0]
 
 
-def test_samples_are_placed_on_the_distance_timeline(ride: dict) -> None:
+def test_samples_are_placed_on_the_distance_timeline(ride: dict[str, Any]) -> None:
     """After the first state, power rows carry the rider's distance (monotone here)."""
     index, _ = scalars(ride["store"], "distance_m", "/plots/power/actual")
     # All but the first sample (logged before the first state at the same stamp).
@@ -122,7 +124,7 @@ def test_samples_are_placed_on_the_distance_timeline(ride: dict) -> None:
     assert index[0] >= 0 and index[-1] <= ride["course"].length_m + 1
 
 
-def test_full_course_plan_curves_against_distance(ride: dict) -> None:
+def test_full_course_plan_curves_against_distance(ride: dict[str, Any]) -> None:
     plan = ride["plan"]
     store = ride["store"]
     for entity, field, scale in (
@@ -147,7 +149,7 @@ def test_full_course_plan_curves_against_distance(ride: dict) -> None:
     assert 20.0 < lean.max() < 45.0
 
 
-def test_state_and_w_prime(ride: dict) -> None:
+def test_state_and_w_prime(ride: dict[str, Any]) -> None:
     states = of_type(ride["events"], RiderState)
     store = ride["store"]
     _, w = scalars(store, "ride_time", "/plots/w_prime_kj/actual")
@@ -167,7 +169,7 @@ def test_state_and_w_prime(ride: dict) -> None:
     assert profile.max() == pytest.approx(course.z_m.max())
 
 
-def test_advice_series_and_horizon_lines(ride: dict) -> None:
+def test_advice_series_and_horizon_lines(ride: dict[str, Any]) -> None:
     advice = of_type(ride["events"], Advice)
     store = ride["store"]
     _, target = scalars(store, "ride_time", "/plots/power/target")
@@ -189,7 +191,7 @@ def test_advice_series_and_horizon_lines(ride: dict) -> None:
     assert len(strips) == len(advice)
 
 
-def test_text_log_has_advice_changes_and_diagnostic_changes(ride: dict) -> None:
+def test_text_log_has_advice_changes_and_diagnostic_changes(ride: dict[str, Any]) -> None:
     store = ride["store"]
     changes = texts(store, "/log/advice")
     # First advice, the +25 W step, fallback on and off again, and the climb's power rise.
@@ -228,7 +230,7 @@ def test_refit_and_adoption_in_one_advice_are_both_logged(tmp_path: Path) -> Non
     assert texts(store, "/log/belief", "TextLog:level") == ["WARN", "INFO"]
 
 
-def test_track_and_path_in_segments(ride: dict) -> None:
+def test_track_and_path_in_segments(ride: dict[str, Any]) -> None:
     store = ride["store"]
     fixes = of_type(ride["events"], GpsFix)
     n_segments = math.ceil((len(fixes) - 1) / (TRACK_SEGMENT - 1))
@@ -241,7 +243,7 @@ def test_track_and_path_in_segments(ride: dict) -> None:
     assert any(line.startswith("/world/path/seg_0000") for line in summary.splitlines())
 
 
-def test_static_course_geometry(ride: dict) -> None:
+def test_static_course_geometry(ride: dict[str, Any]) -> None:
     store = ride["store"]
     course = ride["course"]
     [line] = static_value(store, "/map/course", "GeoLineStrings:line_strings")
@@ -259,7 +261,7 @@ def test_static_course_geometry(ride: dict) -> None:
     assert len(plan_line) == ride["plan"].n_nodes
 
 
-def test_small_on_disk(ride: dict) -> None:
+def test_small_on_disk(ride: dict[str, Any]) -> None:
     # ~1 minute of ride: the static part dominates; a full demo ride is measured in bench/.
     assert ride["path"].stat().st_size < 2_000_000
 
@@ -272,7 +274,7 @@ def test_recorder_without_plan_and_relative_stamps(tmp_path: Path) -> None:
     recorder.log_course()
     recorder.log_state(RiderState(3.0, 10.0, 0.5, 11.0, 0.0, 350.0, 20000.0, 3.0))
     recorder.log_sample(PowerReading(3.5, 351.0))
-    recorder.log_diagnostics([Diagnostic(4.0, "inputs", 2, "power stale")])
+    recorder.log_diagnostics([Diagnostic(4.0, "inputs", Level.ERROR, "power stale")])
     rec.flush()
     rec.disconnect()
     store = RrdReader(path).store().stream().collect()
@@ -326,9 +328,9 @@ def test_sink_parse_rejects(text: str) -> None:
         RerunSink.parse(text)
 
 
-def test_none_sink_records_nothing(tmp_path: Path) -> None:
+def test_none_sink_records_nothing() -> None:
     rec = open_recording(RerunSink.parse("none"))
-    assert not rec.is_enabled()
+    assert not rr.is_enabled(rec)
     recorder = RideRecorder(rec, make_course(), RIDER, None)
     recorder.log_course()
     recorder.log_sample(PowerReading(1.0, 300.0))  # a no-op, no error

@@ -33,12 +33,12 @@ import numpy as np
 import pytest
 import rerun_cli
 from PIL import Image, ImageOps
+from support.rerun_feed import record
+from support.synthetic_ride import RIDER, make_plan, make_ride
 
 from itt_planner.course.loader import load_course
 from itt_planner.view.rerun_log import RideRecorder
 from itt_planner.view.rerun_sink import RerunSink, open_recording
-from support.rerun_feed import record
-from support.synthetic_ride import RIDER, make_plan, make_ride
 
 pytestmark = pytest.mark.screenshot
 
@@ -76,7 +76,7 @@ def _wrapper_server(viewer_url: str, delay_s: float) -> http.server.ThreadingHTT
             f'<img src="/hold" style="display:none"></body></html>').encode()
 
     class Handler(http.server.BaseHTTPRequestHandler):
-        def do_GET(self) -> None:  # noqa: N802 (http.server's name)
+        def do_GET(self) -> None:
             body = page
             if self.path == "/hold":
                 time.sleep(delay_s)
