@@ -10,7 +10,7 @@ STAMP := $(VENV)/.installed
 # Replay output goes here; the demo log and course are the project's own.
 OUT ?= out
 
-.PHONY: setup demo test bench clean
+.PHONY: setup demo lint test bench clean
 
 $(STAMP): pyproject.toml
 	@# Debian splits venv out of python3; as root we can add it, otherwise say what is missing.
@@ -30,7 +30,12 @@ demo: setup
 	$(BIN)/itt-planner replay bags/typical_verona-like_cp-overestimated.mcap --course verona-like --rider typical \
 		--out $(OUT)/advice.mcap --rrd $(OUT)/review.rrd --speed max
 
-test: setup
+# Lint is part of the test: ruff (rule set in pyproject.toml) and mypy --strict on the whole tree.
+lint: setup
+	$(BIN)/ruff check .
+	$(BIN)/python -m mypy
+
+test: lint
 	$(BIN)/python -m pytest -n 2 -q
 
 bench: setup
