@@ -4,7 +4,8 @@ The entity tree it refers to is `itt_planner.view.rerun_paths`. Left column: the
 map (course, GPS track, planned line), the 3D road around the rider and the text log of
 advice changes and diagnostics. Right column: power, speed, W', lean / friction use /
 solve time, and the elevation profile. The time panel opens on the distance timeline,
-where the actual series lie on top of the full-course plan (the paper's figures).
+where the actual series lie on top of the full-course plan (the paper's figures). The plot
+panels and their order are `rerun_paths.PLOT_ROWS`.
 """
 
 from __future__ import annotations
@@ -50,6 +51,12 @@ def _plot(root: str, name: str) -> rrb.TimeSeriesView:
                               axis_x=rrb.TimeAxis(view_range=everything))
 
 
+def _plot_row(panels: tuple[paths.Panel, ...]) -> rrb.View | rrb.Horizontal:
+    """One row of the plot column: a panel, or several side by side."""
+    plots = [_plot(panel.root, panel.title) for panel in panels]
+    return plots[0] if len(plots) == 1 else rrb.Horizontal(*plots)
+
+
 def default_blueprint(*, timeline: str = DISTANCE_TIMELINE,
                       map_zoom: float = DEFAULT_MAP_ZOOM) -> rrb.Blueprint:
     """The layout sent with every ride recording.
@@ -65,16 +72,8 @@ def default_blueprint(*, timeline: str = DISTANCE_TIMELINE,
         row_shares=[3.0, 3.0, 2.0],
     )
     right = rrb.Vertical(
-        _plot(paths.POWER, "Power (W)"),
-        _plot(paths.SPEED, "Speed (km/h)"),
-        _plot(paths.W_PRIME, "W' balance (kJ)"),
-        rrb.Horizontal(
-            _plot(paths.LEAN, "Lean (deg)"),
-            _plot(paths.FRICTION_USE, "Friction-ellipse use"),
-            _plot(paths.SOLVE_TIME, "Replan solve time (ms)"),
-        ),
-        _plot(paths.ELEVATION, "Elevation (m)"),
-        row_shares=[3.0, 3.0, 2.0, 2.0, 2.0],
+        *(_plot_row(panels) for panels, _share in paths.PLOT_ROWS),
+        row_shares=[share for _panels, share in paths.PLOT_ROWS],
     )
     return rrb.Blueprint(
         rrb.Horizontal(left, right, column_shares=[2.0, 3.0]),

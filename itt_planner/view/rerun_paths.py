@@ -1,8 +1,9 @@
 """The entity paths and timelines of a ride recording, named once for the recorder and the layout.
 
 `rerun_log` logs to these paths, `rerun_blueprint` points its views at the panel roots
-(`MAP`, `WORLD`, `LOG`, `POWER`, ...). A new panel is one root here, its series under it,
-one view in the blueprint and the recorder's calls.
+(`MAP`, `WORLD`, `LOG`) and lays out the time-series panels of `PLOT_ROWS`. A new plot
+panel is one root here, its series under it, one row of `PLOT_ROWS`, and the recorder's
+view that logs to it.
 
 Timelines:
     ride_time   the message stamps: a timestamp timeline for POSIX stamps (recorded
@@ -43,6 +44,8 @@ Entities (display units, at the edge: km/h, degrees, kJ, ms, named in the path):
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 RIDE_TIMELINE = "ride_time"
 DISTANCE_TIMELINE = "distance_m"
@@ -89,6 +92,26 @@ FRICTION_USE_PLAN = f"{FRICTION_USE}/plan"
 SOLVE_TIME_REPLAN = f"{SOLVE_TIME}/replan"
 ELEVATION_PROFILE = f"{ELEVATION}/profile"
 ELEVATION_RIDER = f"{ELEVATION}/rider"
+
+
+@dataclass(frozen=True)
+class Panel:
+    """A time-series panel of the default layout: the entity root it shows, its title."""
+
+    root: str
+    title: str
+
+
+#: The right column of the default layout, top to bottom: each row's panels (side by
+#: side) and its share of the column's height.
+PLOT_ROWS: tuple[tuple[tuple[Panel, ...], float], ...] = (
+    ((Panel(POWER, "Power (W)"),), 3.0),
+    ((Panel(SPEED, "Speed (km/h)"),), 3.0),
+    ((Panel(W_PRIME, "W' balance (kJ)"),), 2.0),
+    ((Panel(LEAN, "Lean (deg)"), Panel(FRICTION_USE, "Friction-ellipse use"),
+      Panel(SOLVE_TIME, "Replan solve time (ms)")), 2.0),
+    ((Panel(ELEVATION, "Elevation (m)"),), 2.0),
+)
 
 # ---- text logs ---------------------------------------------------------------------------
 LOG_ADVICE = f"{LOG}/advice"

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 import rerun as rr
+import rerun.blueprint as rrb
 from rerun.chunk import ChunkStore, RrdReader
 from support.rerun_feed import record
 from support.synthetic_ride import (
@@ -26,6 +27,8 @@ from itt_planner.errors import IttError
 from itt_planner.live.advice import Advice, Diagnostic, Level
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.model.state import RiderState
+from itt_planner.view import rerun_paths as paths
+from itt_planner.view.rerun_blueprint import default_blueprint
 from itt_planner.view.rerun_log import MAX_HORIZON_POINTS, TRACK_SEGMENT, RideRecorder
 from itt_planner.view.rerun_scene import MPS_TO_KMH
 from itt_planner.view.rerun_sink import RerunSink, open_recording
@@ -98,6 +101,25 @@ def test_file_has_recording_and_blueprint(ride: dict[str, Any]) -> None:
     assert recording.recording_id == "test-ride"
     # open_recording's default layout, and log_course's with the map zoomed to the course.
     assert len(reader.blueprints()) == 2
+
+
+def test_every_plotted_series_lies_under_a_panel_of_the_layout(ride: dict[str, Any]) -> None:
+    """Each time-series entity of the recording is under one root of `PLOT_ROWS`, and the
+    default layout has one view per root: a series logged elsewhere would be invisible."""
+    roots = [panel.root for panels, _share in paths.PLOT_ROWS for panel in panels]
+    series = {line.split()[0].lstrip("/") for line in ride["store"].summary().splitlines()
+              if line.startswith(("/plots/", "/elevation/"))}
+    assert series and all(any(s.startswith(f"{r}/") for r in roots) for s in series)
+    plots = [v for v in views(default_blueprint().root_container)
+             if isinstance(v, rrb.TimeSeriesView)]
+    assert sorted(str(v.origin) for v in plots) == sorted(f"/{r}" for r in roots)
+
+
+def views(item: Any) -> list[Any]:
+    """The views of a blueprint container, depth first (a view has an origin)."""
+    if hasattr(item, "origin"):
+        return [item]
+    return [v for child in item.contents for v in views(child)]
 
 
 def test_actual_power_and_speed_equal_the_samples(ride: dict[str, Any]) -> None:
