@@ -14,7 +14,7 @@ full demo replay, made so:
         --rider typical --rrd /tmp/review.rrd --replan-period 5 --live-timing
     ITT_SCREENSHOT_RRD=/tmp/review.rrd ITT_SCREENSHOT_WAIT_S=100 \
         ITT_SCREENSHOT_OUT=bench/rerun_viewer.png .venv/bin/python -m pytest \
-        tests/test_viewer_screenshot.py -m screenshot
+        tests/view/test_viewer_screenshot.py -m screenshot
 """
 
 from __future__ import annotations
