@@ -100,7 +100,7 @@ def _run(cmd: list[str], env: dict[str, str], log: Path) -> None:
 def cmake_args() -> list[str]:
     """CMake cache arguments that build a rosidl package against the ROS 2 wheels of this
     interpreter (also what `colcon build --cmake-args` needs for the whole workspace)."""
-    import numpy  # the wheels' rosidl_generator_py compiles against it
+    import numpy  # noqa: PLC0415  (only a build needs it: the wheels' rosidl_generator_py compiles against it)
 
     python_include = sysconfig.get_paths()["include"]
     return ["-DCMAKE_BUILD_TYPE=Release", "-DBUILD_TESTING=OFF",

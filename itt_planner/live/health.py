@@ -11,11 +11,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from itt_planner.live.advice import Diagnostic, Level
-from itt_planner.ocp.solver import CONVERGED_STATUSES
 
-#: IPOPT statuses of a converged solve (the solver seam's; anything else accepted, a
-#: budget-capped feasible iterate, is counted unconverged).
-CONVERGED = CONVERGED_STATUSES
 #: Engine counters the solver diagnostic shows.
 _SOLVER_COUNTERS = ("solves", "failures", "overruns", "exceptions", "fallbacks",
                     "unconverged_solves", "course_replans_asked", "course_replans",

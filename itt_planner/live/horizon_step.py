@@ -26,11 +26,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from itt_planner.course.geometry import Course
-from itt_planner.live.health import CONVERGED
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
 from itt_planner.ocp.horizon_cut import Solution, from_plan
 from itt_planner.ocp.plan import Plan
+from itt_planner.ocp.solver import PlanStatus
 
 if TYPE_CHECKING:
     from itt_planner.ocp.horizon import HorizonPlanner
@@ -112,7 +112,7 @@ class HorizonStep:
         overrun = not self.deterministic and elapsed > self.max_solve_time_s
         if sol is not None and sol.success and not overrun:
             self.consecutive_failures = 0
-            if sol.status not in CONVERGED:
+            if sol.outcome is not PlanStatus.CONVERGED:
                 self._stats["unconverged_solves"] += 1
             good = Solution(state, sol.s_m, sol.t_s, sol.power_w, sol.v_mps, sol.n_m,
                             sol.w_prime_j, sol.predicted_finish_s, sol.w_prime_finish_j)

@@ -28,7 +28,6 @@ import numpy as np
 
 from itt_planner.course.geometry import Course
 from itt_planner.live.course_replan import CourseReplanner, CourseReplanSettings, start_from
-from itt_planner.live.health import CONVERGED
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.state import RiderState
 from itt_planner.ocp.plan import Plan
@@ -119,7 +118,7 @@ class PlanInForce:
         self.cp_w = float(plan.meta["rider"]["critical_power_w"])
         self._on_plan = True  # judged against the full band: the rider started on it
         self._stats["course_replans"] += 1
-        if plan.solver_status not in CONVERGED:
+        if not plan.converged:
             self._stats["course_replans_unconverged"] += 1
         log.info("engine: new plan %d from s=%.0f m adopted (%s, %d iterations, %.1f s)",
                  self.version, plan.s_m[0], plan.solver_status, plan.iterations,
