@@ -164,15 +164,15 @@ class Course:
         y = self.at("y_m", s_m) + np.asarray(n_m) * np.cos(theta)
         return x, y, self.at("z_m", s_m)
 
-    def to_geodetic(self, x_m: np.ndarray, y_m: np.ndarray, z_m: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def to_geodetic(self, x_m: float | np.ndarray, y_m: float | np.ndarray,
+                    z_m: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """ENU (m) -> WGS84 latitude, longitude (deg) and altitude (m)."""
         o = self.origin
         lla = pymap3d.enu2geodetic(x_m, y_m, z_m, o.lat_deg, o.lon_deg, o.alt_m)
         return cast(tuple[np.ndarray, np.ndarray, np.ndarray], lla)
 
-    def from_geodetic(self, lat_deg: np.ndarray, lon_deg: np.ndarray, alt_m: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def from_geodetic(self, lat_deg: float | np.ndarray, lon_deg: float | np.ndarray,
+                      alt_m: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """WGS84 latitude, longitude (deg), altitude (m) -> ENU (m)."""
         o = self.origin
         enu = pymap3d.geodetic2enu(lat_deg, lon_deg, alt_m, o.lat_deg, o.lon_deg, o.alt_m)

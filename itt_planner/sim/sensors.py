@@ -95,7 +95,7 @@ class Sensors:
             th = float(self.course.at("theta_rad", s_m))
             ex, ey = ex - st.outlier_m * math.sin(th), ey + st.outlier_m * math.cos(th)
         # to_geodetic takes floats too (pymap3d); its annotation says arrays only.
-        lat, lon, alt = self.course.to_geodetic(x + ex, y + ey, z)  # type: ignore[arg-type]
+        lat, lon, alt = self.course.to_geodetic(x + ex, y + ey, z)
         return GpsFix(self.t0_s + t, float(lat), float(lon), float(alt), st.gps_std_m)
 
 
