@@ -35,8 +35,10 @@ def test_custom_types_come_from_the_ros_package_msg_files() -> None:
     for name, text in texts.items():
         assert text == (MSG_DIR / f"{name.rsplit('/', 1)[1]}.msg").read_text()
     cmake = (MSG_DIR.parent / "CMakeLists.txt").read_text()
-    assert 'file(GLOB msg_files RELATIVE "${CMAKE_CURRENT_SOURCE_DIR}" CONFIGURE_DEPENDS "msg/*.msg")' \
-        in cmake  # every .msg file is generated; none is listed twice
+    # Every .msg file is generated and none is listed twice: CMake globs msg/.
+    glob = ('file(GLOB msg_files RELATIVE "${CMAKE_CURRENT_SOURCE_DIR}" '
+            'CONFIGURE_DEPENDS "msg/*.msg")')
+    assert glob in cmake
     assert "rosidl_generate_interfaces" in cmake
     assert 'format="3"' in (MSG_DIR.parent / "package.xml").read_text()
 
