@@ -25,11 +25,20 @@ start may use `_FIRST_SHARE` of it):
 - 1D: a cold start on a mesh of half the spacing (the 1D model on the 9 km hilly route
   of bench_convergence with 20 m intervals stopped at 569 iterations; restarted on
   10 m it converged in 65);
-- 3D without a given guess: warm start from the 1D plan of the same course (the 1D
-  model has no roll mode and converges in a fraction of the time; its speed and power
-  profile is most of the 3D solution away from corners). Only as a restart: as the
-  first start it did not pay on verona-like with the issue-18 rider (448 iterations
-  from the 1D plan against 301 cold, 2026-12-01);
+- 3D stopped by its share of the budget: resume from the run's last primal-dual point
+  (multipliers passed back, small barrier, no push off the bounds: the solver's resume
+  option set, `full_course_solver(resume=True)`) with `_RESUME_SHARE` of what is left.
+  A capped 3D run is mostly still converging (it forms the active arcs of C15, C16,
+  W' >= 0 and the road edges a node or two per iteration); a restart from scratch
+  threw that away: the hairpin course (`sim.hairpin_course`) with the paper rider ran
+  365 iterations capped, 4 short of converging, then 190 from the 1D plan, capped again
+  (609 in all); resumed it converges in 365 + 4 (bench/RESULTS.md, 2026-12-01, H5:
+  the resume costs what one uninterrupted run would);
+- 3D that failed (not capped) without a given guess: warm start from the 1D plan of
+  the same course (the 1D model has no roll mode and converges in a fraction of the
+  time; its speed and power profile is most of the 3D solution away from corners).
+  Only as a restart: as the first start it did not pay on verona-like with the
+  issue-18 rider (448 iterations from the 1D plan against 301 cold, 2026-12-01);
 - still capped: continue from the last iterate with IPOPT's acceptable level relaxed
   (`_RELAXED_TOL`: 1e-4 in 5 consecutive iterations), which the verification then
   has to confirm;
@@ -92,6 +101,8 @@ _BOUND_PUSH = 1e-2
 _RETRY_BOUND_PUSH = 1e-4
 #: Share of the budget the first start may use (the rest is for the restarts).
 _FIRST_SHARE = 0.6
+#: Share of the budget left that a capped 3D run may use to resume (module docstring).
+_RESUME_SHARE = 0.8
 #: IPOPT's acceptable tolerance of the relaxed restart (module docstring).
 _RELAXED_TOL = 1e-4
 #: Mesh refinements after a failed verification (module docstring).
@@ -184,15 +195,20 @@ class _Budget:
         return its > 10 and secs > 1.0
 
     def run(self, strategy: str, pr: CourseNlp, w0: np.ndarray, share: float = 1.0,
-            bound_push: float = _BOUND_PUSH, acceptable_tol: float | None = None
-            ) -> SolveResult:
-        """One solver run from `w0` with `share` of what is left of the budget."""
+            bound_push: float = _BOUND_PUSH, acceptable_tol: float | None = None,
+            resume: SolveResult | None = None) -> SolveResult:
+        """One solver run from `w0` with `share` of what is left of the budget; `resume`:
+        a previous run on `pr` to continue from its primal-dual point (its multipliers
+        too) instead of a fresh start."""
         its, secs = self.left()
         t0 = time.perf_counter()
         solver = full_course_solver(pr.tr, max_iter=int(its * share),
                                     max_cpu_time_s=secs * share, tol=self.tol,
-                                    bound_push=bound_push, acceptable_tol=acceptable_tol)
-        res = solver.solve(w0, pr.p, pr.lbw, pr.ubw)
+                                    bound_push=bound_push, acceptable_tol=acceptable_tol,
+                                    resume=resume is not None)
+        res = solver.solve(w0, pr.p, pr.lbw, pr.ubw,
+                           lam_x0=None if resume is None else resume.lam_x,
+                           lam_g0=None if resume is None else resume.lam_g)
         self.attempts.append({"strategy": strategy, "status": res.raw_status,
                               "iterations": res.iterations, "n_nodes": len(pr.nodes),
                               "time_s": round(time.perf_counter() - t0, 3)})
@@ -242,10 +258,14 @@ class _CourseSolve:
         res = run("guess" if self.guess is not None else "cold", prob, cold, share=_FIRST_SHARE)
         if res.gave_up_early and usable():
             res = run("smaller bound push", prob, cold, bound_push=_RETRY_BOUND_PUSH, share=0.5)
+        if res.status is PlanStatus.CAPPED and self.model == "3d" and usable():
+            # Capped 3D runs were mostly still converging: go on from where it stopped.
+            res = run("resume", prob, res.w, share=_RESUME_SHARE, resume=res)
         if not res.converged and self.model == "1d" and usable():
             prob = self.nlp(self.mesh(cap, 0.5), self.guess)
             res = run("finer mesh", prob, prob.w_guess, share=0.7)
-        if not res.converged and self.model == "3d" and self.guess is None and usable():
+        if (res.status is PlanStatus.FAILED and self.model == "3d" and self.guess is None
+                and usable()):
             res = self._warm_from_1d(prob, res)
         if res.status is PlanStatus.CAPPED and usable():
             res = run("relaxed tolerance", prob, res.w, bound_push=_RETRY_BOUND_PUSH,

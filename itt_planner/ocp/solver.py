@@ -5,8 +5,8 @@ Both OCPs (the full-course problem, `course_problem`, and the receding horizon,
 `SolveResult` back: the iterate, the multipliers, and a `PlanStatus` that code and tests
 reason about, with the solver's raw status string, iterations and time beside it.
 Swapping IPOPT for another NLP solver touches this module only: the plugin, the option
-sets (`full_course_solver`, `horizon_solver`), and the mapping of raw statuses onto
-`PlanStatus`:
+sets (`full_course_solver`, with its resume from a primal-dual point, `horizon_solver`),
+and the mapping of raw statuses onto `PlanStatus`:
 
 - `converged`: `Solve_Succeeded`, or `Solved_To_Acceptable_Level` (IPOPT's acceptable
   tolerances, 10-100x looser; accepted because every full-course plan is then replayed
@@ -171,18 +171,27 @@ _HORIZON_COLD = {"mu_init": 1e-2, "mu_strategy": "monotone", "nlp_scaling_method
 #: (29 with the cap), 284 on rovereto-like at half spacing (38), and on a 9 km hilly
 #: route converged to a plan that failed its verification (63 iterations, verified, with).
 _MU_MAX_1D = 0.1
+#: Continue a run from its last primal-dual point (`course_problem`'s resume after a
+#: capped 3D run): the multipliers are passed in and kept, the barrier starts small, the
+#: point is not pushed off its bounds.
+_RESUME = {"warm_start_init_point": "yes", "mu_init": 1e-4, "warm_start_bound_push": 1e-6,
+           "warm_start_bound_frac": 1e-6, "warm_start_mult_bound_push": 1e-6,
+           "warm_start_slack_bound_push": 1e-6, "warm_start_slack_bound_frac": 1e-6}
 
 
 def full_course_solver(tr: Transcription, *, max_iter: int, max_cpu_time_s: float, tol: float,
-                       bound_push: float, acceptable_tol: float | None = None) -> NlpSolver:
+                       bound_push: float, acceptable_tol: float | None = None,
+                       resume: bool = False) -> NlpSolver:
     """The solver of one full-course attempt (`course_problem.solve_plan`).
 
     `bound_push` (= IPOPT's `bound_frac`): how far the initial point is moved inside its
     bounds; IPOPT's default 1e-2 first (1e-4 took 116 instead of 75 iterations on
     verona-like 3D), 1e-4 as a restart after an early failure (see `course_problem`).
     `acceptable_tol`: IPOPT's acceptable level (default: IPOPT's own 1e-6 ... with 15
-    acceptable iterations). The 1D model's barrier is capped (`_MU_MAX_1D`). The budget
-    is at least one iteration and one CPU second.
+    acceptable iterations). The 1D model's barrier is capped (`_MU_MAX_1D`). `resume`:
+    the run continues a previous one from its primal-dual point (`_RESUME`; the caller
+    passes the multipliers to `solve`). The budget is at least one iteration and one CPU
+    second.
     """
     opts = {**_COMMON, "ipopt.max_iter": max(int(max_iter), 1),
             "ipopt.max_cpu_time": max(max_cpu_time_s, 1.0), "ipopt.tol": tol,
@@ -193,6 +202,8 @@ def full_course_solver(tr: Transcription, *, max_iter: int, max_cpu_time_s: floa
         opts["ipopt.mu_max"] = _MU_MAX_1D
     if acceptable_tol is not None:
         opts |= {"ipopt.acceptable_tol": acceptable_tol, "ipopt.acceptable_iter": 5}
+    if resume:
+        opts |= {f"ipopt.{k}": v for k, v in _RESUME.items()}
     return NlpSolver(f"ocp_{tr.model.name}_{tr.layout.n_intervals}", tr, opts)
 
 

@@ -124,6 +124,27 @@ def test_warm_start_from_a_plan(hairpin_plan: Plan) -> None:
     assert err.value.status == "invalid_input"
 
 
+def test_capped_3d_run_resumes_where_it_stopped(hairpin_plan: Plan) -> None:
+    """A 3D run stopped by its share of the budget goes on from its last primal-dual
+    point (multipliers kept): together no more iterations than one uninterrupted run,
+    where a restart from scratch would form the active arcs again."""
+    whole = hairpin_plan.meta["attempts"][0]
+    assert whole["strategy"] == "cold" and whole["status"] == "Solve_Succeeded"
+    # A budget whose first share (60 %) stops the cold run 1-2 iterations short and
+    # leaves more than the 10 iterations a restart needs.
+    budget = math.ceil((whole["iterations"] - 1) / 0.6)
+    while int(budget * 0.6) >= whole["iterations"]:
+        budget -= 1
+    assert budget - int(budget * 0.6) > 10, whole
+    plan = solve_plan(hairpin(), PRESETS["paper"], settings=OcpSettings(max_iter=budget),
+                      model="3d")
+    cold, resumed = plan.meta["attempts"][:2]
+    assert cold["status"] == "Maximum_Iterations_Exceeded"
+    assert resumed["strategy"] == "resume" and resumed["status"] == "Solve_Succeeded"
+    assert cold["iterations"] + resumed["iterations"] <= whole["iterations"] + 5
+    assert plan.iterations <= budget
+
+
 def test_rest_of_the_course_from_a_rider_state(hairpin_plan: Plan) -> None:
     """`start=`: the rest of the course from a mid-course state (the engine's re-plan).
     With a quarter of the plan's W' there, the rest is slower than the plan's rest, W'
