@@ -22,6 +22,7 @@ import dataclasses
 import json
 import logging
 import math
+import threading
 from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -73,6 +74,9 @@ class RideSession:
         self.malformed: Counter[str] = Counter()
         self._last_diagnostics: float | None = None
         self._closed = False
+        # A tick and close() exclude each other: a timer firing while the node stops must
+        # not count an advice the closed log no longer takes.
+        self._tick_lock = threading.RLock()
 
     @classmethod
     def open(cls, config: SessionConfig, *, output_log: str | Path | None = None,
@@ -183,6 +187,10 @@ class RideSession:
 
     def _tick(self, stamp_s: float) -> Advice | None:
         """Run the engine's replan at `stamp_s`; send advice and due diagnostics out."""
+        with self._tick_lock:
+            return None if self._closed else self._tick_open(stamp_s)
+
+    def _tick_open(self, stamp_s: float) -> Advice | None:
         advice = self.engine.update(stamp_s)
         if advice is not None:
             self.advice_out += 1
@@ -279,9 +287,10 @@ class RideSession:
 
     def close(self) -> None:
         """Stop the engine's worker, finish the output log and flush Rerun (idempotent)."""
-        if self._closed:
-            return
-        self._closed = True
+        with self._tick_lock:  # waits for a tick in progress
+            if self._closed:
+                return
+            self._closed = True
         try:
             self.engine.close()
         finally:

@@ -87,13 +87,15 @@ class Spinner:
         assert self.error is None, self.error
 
 
-def _saved_advice_s(state: Path) -> float:
-    """Ride time (s) of the last advice in a node's periodic save, or -inf before one."""
+def _saved_progress(state: Path) -> tuple[float, float]:
+    """Ride time (s) of the last advice and distance (m) in a node's periodic save, or
+    (-inf, -inf) before one."""
     try:
-        stamp = json.loads(state.read_text())["engine"]["last_advice_stamp_s"]
+        engine = json.loads(state.read_text())["engine"]
+        stamp, s_m = engine["last_advice_stamp_s"], engine["estimator"]["s_m"]
     except (OSError, ValueError, KeyError):  # not written yet, or mid-replace
-        return -math.inf
-    return -math.inf if stamp is None else float(stamp) - RIDE_T0_S
+        return -math.inf, -math.inf
+    return (-math.inf, -math.inf) if stamp is None else (float(stamp) - RIDE_T0_S, float(s_m))
 
 
 def _wait(predicate: Any, timeout_s: float) -> bool:
@@ -384,8 +386,13 @@ def test_faults_player_and_node_restarts(ride: Ride, tmp_path: Path,
     player = Proc(cli("play", str(ride.log), "--rate", str(rate), "--start-offset",
                       str(offset)), env, tmp_path / "play2.log")
     # The node carries on with the restarted player: wait until its periodic save shows
-    # advice past 45 % of the ride (a loaded machine lags, so no fixed sleep).
-    assert _wait(lambda: _saved_advice_s(state) > 0.45 * ride.duration_s, 60), node.text()
+    # advice past 45 % of the ride and the rider past 40 % of the course (a loaded machine
+    # lags, so no fixed sleep).
+    def carried_on() -> bool:
+        advice_s, s_m = _saved_progress(state)
+        return advice_s > 0.45 * ride.duration_s and s_m > 0.4 * HAIRPIN_LENGTH_M
+
+    assert _wait(carried_on, 60), node.text()
     assert node.popen.poll() is None, node.text()
     # The node dies mid-ride with the player: only the periodic save survives.
     node.stop(signal.SIGKILL)
