@@ -73,7 +73,30 @@ Design choices:
   1.0 s faster than the optimum by ending its window 2.8 kJ below that target (W' still
   >= 0; the next replan, from the measured W', prices the deficit again).
   Capped iterates that are not yet feasible (open continuity gaps) are failures.
-- Hard caps: `max_iter` and `max_wall_time_s` (per attempt, shared as above); a failure
+- Rescue by continuation in the E9 switch, after both attempts failed (`horizon_rescue`).
+  Why they fail: a rider who pedals near critical power rides right on the kink of E9
+  (W' drains at the full rate above CP, recovers at `(1 - E_n)` of it below), which the
+  model smooths over only `sharpness_w` = 5 W. Newton steps computed outside that band
+  see almost no curvature in the power direction and jump across it: the solver's
+  iterates 2-cycle (power +-100 W mid-window, the objective up and down by ~1 s) until
+  the cap. Measured on the Zwift Bologna ride (CP 285 W, ridden at 270-300 W for half an
+  hour; bench/RESULTS.md): 19 % of the advice were fallbacks; the same NLPs with the
+  switch smoothed over 20 W converged, median 20 iterations (with this rescue and
+  `max_window_s`: 0.5 % fallbacks, median 16 iterations per replan). The 20 W model alone
+  is not the advice: its softplus drains W' by up to `0.69 x 20 W x E_n` too much near
+  CP, which advised 10-20 W below the exact optimum. So the rescue solves the 20 W NLP
+  (`rescue_sharpness_w`, same layout, from the attempts' starts), then polishes it in
+  the exact NLP; if the polish is not usable, the 20 W solution is advised with W'
+  recomputed by the exact E9 (status "Smoothed_Feasible", counted as unconverged): only
+  E9 differs between the two models, so every other state obeys the exact dynamics as
+  it is, and the exact W' is never below the smooth one - the iterate passes `feasible`
+  (dynamics, road, grip, W' >= 0) like any other. It errs on the cautious side (W'
+  spent later), and only where the exact NLP found nothing.
+- Windows of at most `max_window_s` of the plan's riding (never under `min_window_m`):
+  a fixed node count over 1 km up a slow climb made intervals of ~4 s, stiff and failing
+  (`HorizonSettings`).
+- Hard caps: `max_iter` and `max_wall_time_s` (per replan, shared as above and with the
+  rescue, `rescue_share`); a failure
   returns `success=False` with the solver's raw status per attempt and never raises.
 """
 
@@ -92,6 +115,7 @@ from itt_planner.model.dynamics import build_3d_steady_lean, steady_lean_rad
 from itt_planner.model.params import ModelParams
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
+from itt_planner.ocp.horizon_rescue import HorizonRescue, rescue_enabled
 from itt_planner.ocp.horizon_settings import SUBOPTIMAL_FEASIBLE, HorizonSettings, HorizonSolution
 from itt_planner.ocp.horizon_window import HorizonWindow
 from itt_planner.ocp.mesh import road_data
@@ -125,8 +149,10 @@ class HorizonPlanner:
                               accel_bound=False)
         # Three solvers over the same NLP and derivative Functions (building is cheap):
         # the budget is a solver option, so the warm attempt and the cold retry after
-        # it get their shares of the wall time, a cold first start all of it.
-        budget = settings.max_wall_time_s
+        # it get their shares of the wall time, a cold first start all of it (less the
+        # rescue's share).
+        rescue = rescue_enabled(settings)
+        budget = settings.max_wall_time_s * (1.0 - (settings.rescue_share if rescue else 0.0))
         self._solvers = {
             kind: horizon_solver(self._tr, f"horizon_{kind}", warm=kind == "warm",
                                  max_iter=settings.max_iter, max_wall_time_s=wall,
@@ -137,6 +163,8 @@ class HorizonPlanner:
         self._g = ca.Function("horizon_g", [nlp["x"], nlp["p"]], [nlp["g"]])
         self._par = ModelParams(rider, conditions, settings.w_delta, settings.w_power).vector()
         self._window = HorizonWindow(self._model, course, rider, plan, conditions, settings)
+        self._rescue = (HorizonRescue(self._model, self._tr, settings, self._par, self.feasible)
+                        if rescue else None)
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._previous_mult: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._failures = 0
@@ -233,6 +261,7 @@ class HorizonPlanner:
         x_guess, u_guess, start = self._guess(nodes)
         kinds = ("warm", "retry") if start == "shifted" else ("cold",)
         statuses, iterations = [], 0
+        starts = []  # the attempts' starts: the rescue's too
         for kind in kinds:
             if kind == "retry":  # the plan re-anchored at the rider: a start from elsewhere
                 x_guess, u_guess = self._window.plan_guess(nodes)
@@ -241,7 +270,8 @@ class HorizonPlanner:
                 x_guess[ie] = np.clip(x_guess[ie] - (x_guess[ie, 0] - x0[ie]), 0.0, 1.0)
             x_guess[:, 0] = x0
             lam_x0, lam_g0 = self._shift_multipliers(nodes) if kind == "warm" else (None, None)
-            res = self._solvers[kind].solve(lay.join(x_guess, u_guess), p, lbw, ubw,
+            starts.append(lay.join(x_guess, u_guess))
+            res = self._solvers[kind].solve(starts[-1], p, lbw, ubw,
                                             lam_x0=lam_x0, lam_g0=lam_g0)
             if res.raw_status.startswith("error: "):
                 log.warning("horizon solve (%s) raised: %s", kind, res.raw_status)
@@ -255,6 +285,12 @@ class HorizonPlanner:
                 success = True
                 statuses.append(SUBOPTIMAL_FEASIBLE)
                 break
+        if not success and self._rescue is not None:
+            rescued, status, its = self._rescue.solve(starts, p, lbw, ubw)
+            iterations += its
+            statuses.append(status)
+            if rescued is not None:
+                res, success, outcome = rescued, True, rescued.status
         return self._solution(state, nodes, p, res, success, outcome, statuses, iterations,
                               t0)
 

@@ -14,6 +14,9 @@ if TYPE_CHECKING:  # the solver imports CasADi; settings stay light for the live
 
 #: Status of a budget-capped iterate that passed `HorizonPlanner.feasible` (success=True).
 SUBOPTIMAL_FEASIBLE = "Suboptimal_Feasible"
+#: Status of the rescue's smooth solution with exact W' that passed `feasible` (success=True,
+#: `outcome` the polish's: never converged, so counted as unconverged; `horizon_rescue`).
+SMOOTHED_FEASIBLE = "Smoothed_Feasible"
 
 
 @dataclass(frozen=True)
@@ -22,6 +25,16 @@ class HorizonSettings:
 
     Attributes:
         horizon_m: length of the window ahead of the rider.
+        max_window_s, min_window_m: the window ends earlier where the plan takes more
+            than `max_window_s` over `horizon_m` (a slow climb), but not closer than
+            `min_window_m`; 0 s: always `horizon_m`. Why: the node count is fixed, so a
+            1 km window up the 13-16 % ramps of the Bologna ride (plan at 3.6 m/s,
+            ~280 s) had 13-17 m intervals of ~4 s each, where `dv/ds = a/v` is stiff:
+            cold starts from the plan failed at the cap one after the other (a run of
+            ~40 fallbacks), and one that converged rode an integration artefact
+            (28 m/s up a 13 % grade); over 400 m, 37 of 42 of those replans converged,
+            median 18 iterations (bench/RESULTS.md). 120 s leaves every window at
+            >= 8.3 m/s (30 km/h) its full `horizon_m`.
         n_intervals: fixed number of shooting intervals over the window.
         substeps: RK4 substeps per interval.
         h_min_m, h_max_m: finest and coarsest window intervals (before the fixed node
@@ -56,9 +69,19 @@ class HorizonSettings:
             use is at least `corner_cap_use`, the horizon's speed is capped at the plan's
             plus `corner_cap_tol_mps`, or what braking at `corner_cap_brake_g` g from the
             rider's speed reaches (`corner_speed_cap`).
+        rescue_sharpness_w: E9 switch width (W) of the rescue's smooth NLP, tried when
+            the exact attempts failed (`horizon` module docstring, `horizon_rescue`);
+            not above `sharpness_w` (e.g. 0): no rescue.
+        rescue_share: share of `max_wall_time_s` the rescue gets (the warm attempt and
+            the cold retry share the rest as before), two thirds of it for the smooth
+            solve, a third for the polish.
+        polish_max_iter: iteration cap of the polish (the exact NLP from the smooth
+            solution); the smooth solve has `max_iter`, like every attempt.
     """
 
     horizon_m: float = 1000.0
+    max_window_s: float = 120.0
+    min_window_m: float = 200.0
     n_intervals: int = 60
     substeps: int = 1
     h_min_m: float = 2.5
@@ -83,6 +106,9 @@ class HorizonSettings:
     corner_cap_use: float = 0.9
     corner_cap_tol_mps: float = 0.5
     corner_cap_brake_g: float = 0.3
+    rescue_sharpness_w: float = 20.0
+    rescue_share: float = 0.3
+    polish_max_iter: int = 30
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,7 +123,10 @@ class HorizonSolution:
 
     `success`: the profiles are valid advice. `outcome` (`solver.PlanStatus`): how the
     last solver attempt ended, `converged`, `capped` (with `success`: a capped iterate
-    that passed the feasibility check, `status` "Suboptimal_Feasible") or `failed`.
+    that passed the feasibility check, `status` "Suboptimal_Feasible") or `failed`; after
+    a rescue (`horizon_rescue`) the polish's, and with `success` and `status`
+    "Smoothed_Feasible" (the smooth solution with exact W') `failed` or `capped`: usable,
+    never counted as converged.
     `status`: the raw solver statuses, the attempts' joined by "; " after a failure.
     """
 

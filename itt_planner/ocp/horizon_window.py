@@ -40,13 +40,18 @@ class HorizonWindow:
 
         Equal steps of the cumulative node density `1/h`, with `h` the course's mesh
         spacing capped by `h_min_m + near_grade * (distance ahead)`. A window cut short
-        by the finish has more nodes than that density asks for: the surplus is spread
-        evenly (an added uniform density) instead of shrinking every interval alike,
-        which left 0.85 m first intervals in a 150 m window, too short to steer from a
-        measured line (a grip violation of 3x at the first node in test_horizon).
+        by the finish (or by `max_window_s`) has more nodes than that density asks for:
+        the surplus is spread evenly (an added uniform density) instead of shrinking
+        every interval alike, which left 0.85 m first intervals in a 150 m window, too
+        short to steer from a measured line (a grip violation of 3x at the first node
+        in test_horizon).
         """
-        st, c = self.settings, self.course
+        st, c, plan = self.settings, self.course, self.plan
         end = min(s_m + st.horizon_m, c.length_m)
+        if st.max_window_s > 0:  # no more than `max_window_s` of the plan's riding
+            t_end = float(plan.at("t_s", s_m)) + st.max_window_s
+            end = min(end, max(float(np.interp(t_end, plan.t_s, plan.s_m)),
+                               s_m + st.min_window_m))
         s_m = min(s_m, end - 1.0)
         grid = np.concatenate([[s_m], c.s_m[(c.s_m > s_m) & (c.s_m < end)], [end]])
         h = np.minimum(np.interp(grid, c.s_m, self._spacing),

@@ -1,5 +1,5 @@
 """Receding-horizon OCP: replans along hairpins, usable-rate on a technical descent, W' >= 0,
-warm starts, budget-capped iterates that are still valid advice, failures."""
+warm starts, budget-capped iterates that are still valid advice, the rescue, failures."""
 
 from __future__ import annotations
 
@@ -11,14 +11,16 @@ from support.courses import hairpin
 
 from itt_planner.course.geometry import Course
 from itt_planner.course.loader import load_course
-from itt_planner.model.conditions import GRAVITY_MPS2
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.model.dynamics import build_3d_steady_lean
 from itt_planner.model.rider import PRESETS, Rider
 from itt_planner.model.state import RiderState
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.horizon import HorizonPlanner
-from itt_planner.ocp.horizon_settings import HorizonSettings, HorizonSolution
+from itt_planner.ocp.horizon_settings import SMOOTHED_FEASIBLE, HorizonSettings, HorizonSolution
+from itt_planner.ocp.horizon_window import HorizonWindow
 from itt_planner.ocp.plan import Plan
-from itt_planner.ocp.solver import PlanStatus
+from itt_planner.ocp.solver import PlanStatus, SolveResult
 
 COURSE = hairpin(straight_m=600.0)
 
@@ -129,13 +131,16 @@ def test_usable_replans_on_a_technical_descent() -> None:
 
 
 def test_capped_iterate_returned_only_when_feasible(plan: Plan) -> None:
-    """A budget that stops IPOPT early: the iterate is advice only if it is feasible."""
+    """A budget that stops IPOPT early: the iterate is advice only if it is feasible.
+
+    Without the rescue (its own test below), so that a capped attempt is the last one."""
     rider = PRESETS["paper"]
     results = []
     for max_iter in (5, 15, 30):
         short = HorizonPlanner(COURSE, rider, plan,
                                settings=HorizonSettings(horizon_m=500.0, max_iter=max_iter,
-                                                        max_wall_time_s=20.0))
+                                                        max_wall_time_s=20.0,
+                                                        rescue_sharpness_w=0.0))
         for s in (100.0, 300.0, 560.0):
             short.reset()
             results.append((max_iter, short.solve(plan_state(plan, s))))
@@ -186,6 +191,80 @@ def test_off_plan_state_keeps_w_prime_non_negative(plan: Plan) -> None:
     sol = deep.solve(low)
     assert sol.success, sol.status
     assert sol.w_prime_j.min() >= -0.01
+
+
+@pytest.mark.parametrize("polish_fails", [False, True])
+def test_rescue_when_the_exact_nlp_fails(plan: Plan, polish_fails: bool,
+                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """Both exact attempts failing (as at the E9 kink on a real ride): the continuation
+    NLP (E9 switch smoothed over 20 W) is solved and polished in the exact NLP; when the
+    polish fails too, the smooth solution is advised with W' recomputed by the exact E9:
+    the same line and speeds, W' never below the smooth model's, and valid advice, usable
+    but not counted as converged."""
+    rider = PRESETS["paper"]
+    settings = HorizonSettings(horizon_m=500.0, max_iter=150, max_wall_time_s=20.0)
+    rescuer = HorizonPlanner(COURSE, rider, plan, settings=settings)
+    rescue = rescuer._rescue
+    assert rescue is not None
+
+    def fail(w0: np.ndarray, *_args: object, **_kwargs: object) -> SolveResult:
+        return SolveResult(w0, None, None, float("nan"), PlanStatus.FAILED,
+                           "Restoration_Failed", 1, 0.0)
+
+    for solver in rescuer._solvers.values():
+        monkeypatch.setattr(solver, "solve", fail)
+    if polish_fails:
+        monkeypatch.setattr(rescue.polish, "solve", fail)
+    smooth: list[np.ndarray] = []
+    real_smooth = rescue.smooth.solve
+
+    def smooth_solve(*args: object, **kwargs: object) -> SolveResult:
+        out = real_smooth(*args, **kwargs)  # type: ignore[arg-type]
+        smooth.append(out.w)
+        return out
+
+    monkeypatch.setattr(rescue.smooth, "solve", smooth_solve)
+    for s in (100.0, 300.0):
+        smooth.clear()
+        sol = rescuer.solve(plan_state(plan, s))
+        assert sol.success, sol.status
+        assert (sol.status == SMOOTHED_FEASIBLE) == polish_fails, sol.status
+        if polish_fails:
+            assert sol.outcome is not PlanStatus.CONVERGED
+        assert sol.w_prime_j.min() >= 0.0
+        assert np.all(np.abs(sol.n_m[1:]) <= 4.0 - 0.5 + 1e-3)
+        use = friction_use(sol, rider)
+        assert use[1:].max() <= max(1.0, use[0]) + settings.grip_tol + 1e-3
+        if polish_fails:
+            x, _, _ = rescuer._tr.layout.split(smooth[-1])
+            m = rescuer._model
+            np.testing.assert_allclose(sol.v_mps, x[m.index("v")])
+            smooth_w_prime = x[m.index("e_n")] * rider.w_prime_j
+            # (up to the smooth NLP's own continuity gaps, within its tolerance)
+            tol_j = settings.feasible_tol * rider.w_prime_j
+            assert np.all(sol.w_prime_j >= smooth_w_prime - tol_j)
+            assert sol.w_prime_j[-1] > smooth_w_prime[-1]  # the smooth E9 drains faster
+
+
+def test_window_capped_by_the_plans_riding_time(plan: Plan) -> None:
+    """A window ends where the plan has ridden `max_window_s` (a slow climb), never closer
+    than `min_window_m`; 0 s keeps the full `horizon_m`."""
+    s0, model, rider = 100.0, build_3d_steady_lean(), PRESETS["paper"]
+
+    def window(**kwargs: float) -> np.ndarray:
+        settings = HorizonSettings(horizon_m=500.0, **kwargs)  # type: ignore[arg-type]
+        nodes = HorizonWindow(model, COURSE, rider, plan, Conditions(), settings).nodes(s0)
+        assert len(nodes) == settings.n_intervals + 1
+        assert np.all(np.diff(nodes) > 0)
+        return nodes
+
+    assert window(max_window_s=0.0)[-1] == pytest.approx(s0 + 500.0)
+    t0 = float(plan.at("t_s", s0))
+    for max_window_s, min_window_m in ((10.0, 50.0), (10.0, 300.0)):
+        end = max(float(np.interp(t0 + max_window_s, plan.t_s, plan.s_m)), s0 + min_window_m)
+        assert end < s0 + 500.0
+        nodes = window(max_window_s=max_window_s, min_window_m=min_window_m)
+        assert nodes[-1] == pytest.approx(end)
 
 
 def test_failure_returns_status_not_exception(plan: Plan) -> None:

@@ -1,0 +1,110 @@
+"""Benchmark of the receding horizon on a real ride: fallbacks, statuses, iterations, latency.
+
+Replays a ride file (default: the Zwift Bologna ride of `../shared/data`, real power on
+the route of a Giro ITT) through a pacing session on its own course, deterministic (the
+iteration caps are the budget), and prints one JSON object: the advice and how many
+were fallbacks, the horizon replans by solver status (`Suboptimal_Feasible` and
+`Smoothed_Feasible` are usable unconverged iterates, counted apart), the replans that
+failed per km of the course, iterations and wall-clock solve times (median, p95), the
+advice figures of `advice_stats`, the real-time factor and the load average (a shared
+machine: times are comparable only within one run).
+
+Course re-solves of the rest of the course are off by default (`--course-replan-period
+0`): each waits for a full-course OCP in a worker process, which is not what this
+benchmark measures and held a replay for minutes on this ride.
+
+Usage: .venv/bin/python bench/bench_horizon_ride.py --rider RIDER.yaml
+       [--ride FILE.tcx] [--model 3d|1d] [--cache-dir DIR] [--stop-s SECONDS]
+       [--course-replan-period 0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import statistics
+import sys
+import tempfile
+import time
+from collections import Counter
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from itt_planner.live.advice_shaping import advice_stats  # noqa: E402
+from itt_planner.live.engine import ON_PLAN  # noqa: E402
+from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed  # noqa: E402
+from itt_planner.logs.ride_import import import_ride  # noqa: E402
+from itt_planner.logs.ridelog import RideLogReader  # noqa: E402
+from itt_planner.session.config import SessionConfig, build_engine  # noqa: E402
+from itt_planner.session.ride_session import RideSession  # noqa: E402
+
+DEFAULT_RIDE = ROOT.parent / "shared" / "data" / "rides" / "zwift_bologna_tt_virtual.tcx"
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, math.ceil(q * len(ordered)) - 1)]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--ride", type=Path, default=DEFAULT_RIDE)
+    ap.add_argument("--rider", required=True, help="rider preset or YAML")
+    ap.add_argument("--model", default="3d", help="full-course plan model")
+    ap.add_argument("--cache-dir", default=".itt_cache")
+    ap.add_argument("--stop-s", type=float, default=math.inf, help="replay this much only")
+    ap.add_argument("--course-replan-period", type=float, default=0.0)
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        log = Path(tmp) / "ride.mcap"
+        import_ride(args.ride, log)
+        config = SessionConfig(course=str(args.ride), rider=args.rider, model=args.model,
+                               plan_cache=args.cache_dir, deterministic=True,
+                               course_replan_period_s=args.course_replan_period)
+        engine = build_engine(config)
+        session = RideSession(config, engine, keep_advice=True)
+        first = last = None
+        start = time.perf_counter()
+        for raw, value in RideLogReader(log, namespace=config.namespace).decoded():
+            stamp = raw.log_time_ns / 1e9
+            first = stamp if first is None else first
+            if stamp - first > args.stop_s:
+                break
+            session.advance_to(stamp)
+            last = stamp
+            if isinstance(value, GpsFix | WheelSpeed | PowerReading):
+                session.on_sample(value, raw)
+        session.finish()
+        wall = time.perf_counter() - start
+        advice = session.advice or []
+        counts = session.counts()
+        session.close()
+    # Advice from a replan carries its solver status and iterations (a fallback: the
+    # failed one's); the plan's own advice says `on_plan`.
+    replans = [a for a in advice if a.solver_status not in (ON_PLAN, "finished")]
+    failed = [a for a in replans if a.fallback]
+    times = engine.solve_times_s
+    ride_s = (last - first) if first is not None and last is not None else 0.0
+    print(json.dumps({
+        "ride": args.ride.name, "rider": args.rider, "ride_s": ride_s,
+        "advice": len(advice), "fallbacks": session.fallbacks,
+        "fallback_pct": 100.0 * session.fallbacks / max(len(advice), 1),
+        "replans": len(replans),
+        "statuses": dict(Counter("FAILED" if a.fallback else a.solver_status for a in replans)),
+        "failed_per_km": dict(Counter(int(a.state.s_m // 1000) for a in failed)),
+        "iterations_median": statistics.median(a.iterations for a in replans) if replans else None,
+        "iterations_p95": percentile([a.iterations for a in replans], 0.95) if replans else None,
+        "solve_time_median_s": statistics.median(times) if times else None,
+        "solve_time_p95_s": percentile(times, 0.95) if times else None,
+        "realtime_factor": ride_s / wall if wall > 0 else None, "wall_s": wall,
+        "load_average": os.getloadavg(), "counts": counts,
+        "advice_stats": advice_stats(advice) if advice else {},
+    }, default=str))
+
+
+if __name__ == "__main__":
+    main()
