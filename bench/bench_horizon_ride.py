@@ -13,8 +13,8 @@ Course re-solves of the rest of the course are off by default (`--course-replan-
 0`): each waits for a full-course OCP in a worker process, which is not what this
 benchmark measures and held a replay for minutes on this ride.
 
-Usage: .venv/bin/python bench/bench_horizon_ride.py --rider RIDER.yaml
-       [--ride FILE.tcx] [--model 3d|1d] [--cache-dir DIR] [--stop-s SECONDS]
+Usage: .venv/bin/python bench/bench_horizon_ride.py [--rider RIDER.yaml] (default:
+       bench/bologna_rider.yaml) [--ride FILE.tcx] [--model 3d|1d] [--cache-dir DIR] [--stop-s SECONDS]
        [--course-replan-period 0]
 """
 
@@ -43,6 +43,7 @@ from itt_planner.session.config import SessionConfig, build_engine  # noqa: E402
 from itt_planner.session.ride_session import RideSession  # noqa: E402
 
 DEFAULT_RIDE = ROOT.parent / "shared" / "data" / "rides" / "zwift_bologna_tt_virtual.tcx"
+DEFAULT_RIDER = ROOT / "bench" / "bologna_rider.yaml"
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -53,7 +54,7 @@ def percentile(values: list[float], q: float) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--ride", type=Path, default=DEFAULT_RIDE)
-    ap.add_argument("--rider", required=True, help="rider preset or YAML")
+    ap.add_argument("--rider", default=str(DEFAULT_RIDER), help="rider preset or YAML")
     ap.add_argument("--model", default="3d", help="full-course plan model")
     ap.add_argument("--cache-dir", default=".itt_cache")
     ap.add_argument("--stop-s", type=float, default=math.inf, help="replay this much only")
