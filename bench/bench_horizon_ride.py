@@ -14,8 +14,8 @@ Course re-solves of the rest of the course are off by default (`--course-replan-
 benchmark measures and held a replay for minutes on this ride.
 
 Usage: .venv/bin/python bench/bench_horizon_ride.py [--rider RIDER.yaml] (default:
-       bench/bologna_rider.yaml) [--ride FILE.tcx] [--model 3d|1d] [--cache-dir DIR] [--stop-s SECONDS]
-       [--course-replan-period 0]
+       bench/bologna_rider.yaml) [--ride FILE.tcx] [--model 3d|1d] [--cache-dir DIR]
+       [--stop-s SECONDS] [--course-replan-period 0]
 """
 
 from __future__ import annotations
