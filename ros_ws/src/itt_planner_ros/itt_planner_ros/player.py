@@ -37,6 +37,7 @@ from typing import Any, NamedTuple
 from builtin_interfaces.msg import Time
 from mcap.reader import make_reader
 from rclpy.context import Context
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosbags.rosbag2.errors import ReaderError
@@ -129,6 +130,9 @@ class _Channel(NamedTuple):
     offered_qos: str
 
 
+#: Seconds the player waits, after the last message, for it to reach its readers.
+LINGER_S = 0.5
+
 def play(log_path: str | Path, settings: PlaySettings = PlaySettings(),
          stop_event: threading.Event | None = None, *,
          context: Context | None = None) -> PlayStats:
@@ -157,6 +161,7 @@ def play(log_path: str | Path, settings: PlaySettings = PlaySettings(),
             player.stats.loops += 1
             if not settings.loop:
                 break
+        player.linger()
         return player.stats
 
 
@@ -255,6 +260,14 @@ class _Player:
         sec, nanosec = divmod(stamp_ns, 1_000_000_000)
         self._clock.publish(Clock(clock=Time(sec=sec, nanosec=nanosec)))
         self.stats.clock_messages += 1
+
+    def linger(self) -> None:
+        """Let the last messages reach their readers before the publishers go: reliable
+        ones until acknowledged (as rosbag2's player waits for acks), best-effort ones for
+        a moment (a run that destroyed them at once lost the log's last message)."""
+        for publisher in self._publishers.values():
+            publisher.wait_for_all_acked(Duration(seconds=LINGER_S))
+        time.sleep(LINGER_S)
 
     def play_once(self, stop: threading.Event) -> bool:
         """One pass over the log, paced on the monotonic clock; False if stopped."""
