@@ -34,21 +34,13 @@ from typing import Any
 
 import numpy as np
 import yaml
+from support.courses import SHORT
 
 from itt_planner.sweep import load_spec, run_sweep, solve_case
 from itt_planner.sweep.cases import expand, load_inputs
 from itt_planner.sweep.cluster import ray_session
 from itt_planner.sweep.solve import CaseSolver
 from itt_planner.sweep.store import ResultStore
-
-SHORT = {"name": "short-1200m", "width_left_m": 4.0, "width_right_m": 4.0, "segments": [
-    {"type": "straight", "length_m": 900.0, "grade_pct": 2.0},
-    {"type": "clothoid", "length_m": 10.0, "radius_m": 14.0, "direction": "left",
-     "grade_pct": -3.0},
-    {"type": "arc", "angle_deg": 120.0, "radius_m": 14.0, "direction": "left",
-     "grade_pct": -3.0},
-    {"type": "clothoid", "length_m": 10.0, "grade_pct": -3.0},
-    {"type": "straight", "length_m": 250.0, "grade_pct": -3.0}]}
 
 
 def load() -> str:

@@ -32,6 +32,7 @@ from typing import Any
 import psutil
 import pytest
 import yaml
+from support.courses import SHORT
 from typer.testing import CliRunner
 
 from itt_planner.cli import app
@@ -56,15 +57,6 @@ from itt_planner.sweep.spec import Equipment
 ROOT = Path(__file__).resolve().parents[2]
 RAY = Path(sys.executable).with_name("ray")
 
-#: 1.2 km: a climb, a 14 m hairpin-like bend, a descent (3D cases ~1 s CPU each, at most ~3 s).
-SHORT = {"name": "short-1200m", "width_left_m": 4.0, "width_right_m": 4.0, "segments": [
-    {"type": "straight", "length_m": 900.0, "grade_pct": 2.0},
-    {"type": "clothoid", "length_m": 10.0, "radius_m": 14.0, "direction": "left",
-     "grade_pct": -3.0},
-    {"type": "arc", "angle_deg": 120.0, "radius_m": 14.0, "direction": "left",
-     "grade_pct": -3.0},
-    {"type": "clothoid", "length_m": 10.0, "grade_pct": -3.0},
-    {"type": "straight", "length_m": 250.0, "grade_pct": -3.0}]}
 #: The same road 0.4 m wide: narrower than the bike and its margins, no solver can use it.
 NARROW = {**SHORT, "name": "narrow", "width_left_m": 0.2, "width_right_m": 0.2}
 WINDS_KMH = (0.0, 40.0)
