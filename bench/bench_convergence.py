@@ -4,10 +4,12 @@ For each course and model (1D, 3D) the plan is solved on the default non-uniform
 on meshes of half and double its spacing (`h_min_m`, `h_max_m`, `h_max_1d_m` scaled by
 0.5 and 2), each from the cold default guess (with the restart strategies of `ocp`), and
 the row says: status (`solver.PlanStatus`), IPOPT's status, iterations, the strategies
-used, nodes, wall time, finish time, whether the plan passed its verification (and its
-worst mismatch). Then per course: the finish-time differences between the meshes, and
-1D vs 3D on the default mesh (the 1D finish should be within 0.3 % of the 3D finish on
-courses without tight corners; the course's smallest corner radius is printed beside it).
+used, nodes, wall time, CPU time (the solve's `cpu_s`; `child_cpu_s` the whole child
+process with imports and verification), finish time, whether the plan passed its
+verification (and its worst mismatch). Then per course: the finish-time differences
+between the meshes, and 1D vs 3D on the default mesh (the 1D finish should be within
+0.3 % of the 3D finish on courses without tight corners; the course's smallest corner
+radius is printed beside it).
 
 Courses: the demo courses, the real tracks (`../shared/data`, skipped when absent), and
 course-builder courses with a climb, a technical descent, a hilly route with a -6.9 %
@@ -28,8 +30,10 @@ import argparse
 import json
 import multiprocessing as mp
 import os
+import resource
 import time
 from pathlib import Path
+from queue import Empty
 from typing import Any
 
 from itt_planner.course.builder import build_course
@@ -109,8 +113,9 @@ def _case(name: str, model: str, scale: float, queue: mp.Queue[dict[str, Any]]) 
         base = OcpSettings()
         settings = OcpSettings(h_min_m=base.h_min_m * scale, h_max_m=base.h_max_m * scale,
                                h_max_1d_m=base.h_max_1d_m * scale)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         plan = solve_plan(course, RIDER, settings=settings, model=model)
+        cpu_s = time.process_time() - c0
         ver = plan.meta.get("verification") or {}
         row |= {"length_km": round(course.length_m / 1000, 2),
                 "min_radius_m": round(min((c.min_radius_m for c in course.corners),
@@ -118,7 +123,7 @@ def _case(name: str, model: str, scale: float, queue: mp.Queue[dict[str, Any]]) 
                 "status": plan.status, "ipopt": plan.meta.get("ipopt_status"),
                 "iterations": plan.iterations, "nodes": plan.n_nodes,
                 "strategies": "+".join(a["strategy"] for a in plan.meta.get("attempts", [])),
-                "wall_s": round(time.perf_counter() - t0, 1),
+                "wall_s": round(time.perf_counter() - t0, 1), "cpu_s": round(cpu_s, 1),
                 "finish_s": round(plan.finish_time_s, 2),
                 "verified": ver.get("verified"), "worst": ver.get("worst"),
                 "worst_ratio": ver.get("worst_ratio"),
@@ -134,19 +139,30 @@ def run_case(name: str, model: str, scale: float) -> dict[str, Any]:
     ctx = mp.get_context("spawn")
     queue = ctx.Queue()
     proc = ctx.Process(target=_case, args=(name, model, scale, queue))
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     proc.start()
+    row: dict[str, Any] = {}
+    # Take the row while the child lives (it may block on the queue's pipe until read).
+    while not row and (proc.is_alive() or not queue.empty()):
+        try:
+            row = queue.get(timeout=1.0)
+        except Empty:
+            continue
     proc.join()
-    if queue.empty():
-        return {"course": name, "model": model, "mesh": scale, "status": "error",
-                "error": f"child exited with {proc.exitcode}"}
-    row: dict[str, Any] = queue.get()
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if not row:
+        row = {"course": name, "model": model, "mesh": scale, "status": "error",
+               "error": f"child exited with {proc.exitcode}"}
+    # The whole child (imports, course, solve, verification): user + system CPU seconds.
+    row["child_cpu_s"] = round(after.ru_utime + after.ru_stime
+                               - before.ru_utime - before.ru_stime, 1)
     return row
 
 
 def summary(rows: list[dict[str, Any]]) -> str:
     """Markdown: the rows, then mesh and model differences per course."""
     cols = ("course", "model", "mesh", "status", "ipopt", "iterations", "strategies", "nodes",
-            "wall_s", "finish_s", "verified", "worst_ratio", "load")
+            "wall_s", "cpu_s", "finish_s", "verified", "worst_ratio", "load")
     lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     lines += ["| " + " | ".join(str(r.get(c, r.get("error", "")) if c != "ipopt" else
                                     r.get("ipopt", r.get("error", ""))) for c in cols) + " |"
