@@ -2,8 +2,9 @@
 
 For every real ride found (tests/data/ or ../shared/data/): `calibrate` on the ride
 (mass estimated unless it is not identified, then 80 kg), then `validate` with that
-rider on the ride's own course (1D replay in still air and in the day's fitted wind, 3D
-replay in the day's wind; the 1D plan with `--plan`). First the synthetic truth of
+rider on the ride's own course (1D replay of the ride's power in still air and in the
+day's fitted wind, then with the ride's braking and stops too; 3D replay in the day's wind
+with the ride's braking and stops; the 1D plan with `--plan`). First the synthetic truth of
 tests/calibration against its fit. Prints lines per ride and a JSON object. Run:
 `.venv/bin/python -m bench.bench_calibration [--plan] [NAME...]` (NAME: rides whose
 path contains it).
@@ -103,7 +104,8 @@ def _print_row(path: Path, row: dict[str, Any], fit: CalibrationResult) -> None:
         print(f"    {ph['model']} ({ph['conditions']}): finish {ph['finish_error_pct']:+.2f} %,"
               f" MAE {ph['mae_kmh']} RMSE {ph['rmse_kmh']} bias {ph['bias_kmh']} km/h, "
               f"{100 * ph['share_within_2kmh']:.0f} % within 2 km/h, floor "
-              f"{ph['noise_floor_kmh']} km/h")
+              f"{ph['noise_floor_kmh']} km/h"
+              + (f"; ride's inputs {ph['ride_inputs']}" if "ride_inputs" in ph else ""))
     for key in ("physics_3d", "validate_refused"):
         if key in row:
             print(f"    {key}: {row[key]}")

@@ -41,6 +41,8 @@ def physics_check(run: ForwardRun, ride: RideOnCourse, course: Course) -> dict[s
         **_speed_figures(err),
         "noise_floor_kmh": round(ride.noise_floor_kmh(), 3),
     }
+    if run.ride_inputs is not None:
+        out["ride_inputs"] = run.ride_inputs
     km = np.floor((ride.s_m - ride.s_m[0]) / 1000.0).astype(int)
     out["per_km"] = [{"km": int(k), **_speed_figures(err[km == k]),
                       "time_error_s": round(float(_span_time(run.t_s, km == k)

@@ -3,7 +3,8 @@
 Validation compares models and plans with the ride place by place, so the ride is
 expressed on a uniform grid of the course (`step_m`): the power the rider put out
 there, the speed (smoothed over 5 s), the raw GPS speed, and the moving time it took to
-get there (stops and pauses removed: the models never stop at a junction).
+get there (stops and pauses removed: the models never stop at a junction), and the
+time it stood or paused (where a replay restarts from the ride's state).
 """
 
 from __future__ import annotations
@@ -32,6 +33,16 @@ class RideOnCourse:
     v_raw_gps_mps: np.ndarray
     t_moving_s: np.ndarray
     matched_share: float
+    t_stopped_s: np.ndarray
+
+    def moving_dt_s(self) -> np.ndarray:
+        """The ride's moving time over each grid interval (0 where it was not seen
+        moving: a recording gap it crossed)."""
+        return np.diff(self.t_moving_s)
+
+    def stopped_dt_s(self) -> np.ndarray:
+        """Time the ride stood (or the record paused) within each grid interval."""
+        return np.diff(self.t_stopped_s)
 
     @property
     def moving_time_s(self) -> float:
@@ -67,6 +78,7 @@ def ride_on_course(ride: RideSeries, course: Course, step_m: float = 5.0) -> Rid
     dt = np.diff(ride.t_s)
     keep = (np.diff(ride.block) == 0) & (ride.v_mps[1:] > MOVING_MPS)
     t_moving = np.concatenate([[0.0], np.cumsum(np.where(keep, dt, 0.0))])
+    t_stopped = ride.t_s - ride.t_s[0] - t_moving  # standing, and recording gaps
     v_smooth = smooth(ride.v_mps, ride.block, SMOOTH_SAMPLES)
     grid = np.arange(s0, s1, step_m)
     # Progress is monotone in the matched samples; repeated s (a stop) keep the first.
@@ -79,6 +91,7 @@ def ride_on_course(ride: RideSeries, course: Course, step_m: float = 5.0) -> Rid
         v_mps=np.interp(grid, sk, v_smooth[at]),
         v_raw_gps_mps=np.interp(grid, sk, np.nan_to_num(ride.gps_speed_mps[at], nan=np.nan)),
         t_moving_s=np.interp(grid, sk, t_moving[at]), matched_share=share,
+        t_stopped_s=np.interp(grid, sk, t_stopped[at]),
     )
 
 

@@ -55,10 +55,11 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
                   models: tuple[str, ...] = ("1d", "3d"), plan_models: tuple[str, ...] = (),
                   temperature_c: float | None = None,
                   cache_dir: Path = Path(".itt_cache")) -> Validation:
-    """Physics check (the 1D model in still air and in the day's wind, the 3D model in the
-    day's wind, as `models` asks) and, for each of `plan_models`, the plan check (at the
-    ride's air density, in the day's wind). A 3D replay that stalls is reported, not
-    raised (`physics_3d`).
+    """Physics check (the 1D model with the ride's power alone in still air and in the
+    day's wind, then with the ride's braking and stops too; the 3D model in the day's
+    wind with the ride's braking and stops; as `models` asks) and, for each of
+    `plan_models`, the plan check (at the ride's air density, in the day's wind). A 3D
+    replay that stalls is reported, not raised (`physics_3d`).
 
     The day's wind is fitted to the ride for this rider (`aero.fit_day_wind`): two
     numbers for the whole ride, a condition of the day like the air density, not a
@@ -72,7 +73,6 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
     series = ride if isinstance(ride, RideSeries) else load_rides([ride], temperature_c)[0]
     on_course = ride_on_course(series, course)
     conditions = ride_conditions(series)
-    runs = [forward_1d(course, rider, on_course, conditions)] if "1d" in models else []
     wind_note: dict[str, Any] = {}
     try:
         wind = fit_day_wind(series, rider.mass_kg, rider.crr, rider.drag_area_m2,
@@ -80,13 +80,21 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
     except CalibrationError as err:
         wind_note = {"not_fitted": str(err)}
     else:
-        conditions = ride_conditions(series, wind)
-        if "1d" in models:
-            runs.append(forward_1d(course, rider, on_course, conditions, "day wind"))
         speed_kmh, from_deg = wind_meteo(wind)
         wind_note = {"speed_kmh": round(speed_kmh, 1), "from_deg": round(from_deg, 0)}
+    day = ride_conditions(series, wind) if "speed_kmh" in wind_note else conditions
+    day_label = "day wind" if "speed_kmh" in wind_note else "still air"
+    runs = []
+    if "1d" in models:
+        # The ride's power alone (still air, then the day's wind), then with the ride's
+        # braking and stops: what each of the ride's inputs explains.
+        runs.append(forward_1d(course, rider, on_course, conditions, ride_brakes=False))
+        if "speed_kmh" in wind_note:
+            runs.append(forward_1d(course, rider, on_course, day, day_label, ride_brakes=False))
+        runs.append(forward_1d(course, rider, on_course, day, day_label))
     figures: dict[str, Any] = {
         "ride": series.source, "course": course.name, "rider": rider.name,
+        "rider_values": _rider_values(rider),
         "matched_share": round(on_course.matched_share, 3),
         "covered_m": round(float(on_course.s_m[-1] - on_course.s_m[0]), 1),
         "air_density_kgpm3": round(conditions.air_density_kgpm3, 4),
@@ -94,8 +102,7 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
     }
     if "3d" in models:
         try:
-            runs.append(forward_3d(course, rider, on_course, conditions,
-                                   "day wind" if "speed_kmh" in wind_note else "still air"))
+            runs.append(forward_3d(course, rider, on_course, day, day_label))
         except CalibrationError as err:
             figures["physics_3d"] = str(err)
     figures["physics"] = [physics_check(run, on_course, course) for run in runs]
@@ -106,7 +113,7 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
 
         figures["plans"] = []
         for model in plan_models:
-            plan = load_or_solve(course, rider, conditions, OcpSettings(), model,
+            plan = load_or_solve(course, rider, day, OcpSettings(), model,
                                  cache_dir=cache_dir)
             if not plan.meta.get("success", False):
                 log.warning("plan (%s) for %s did not converge: %s", model, course.name,
@@ -114,6 +121,14 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
             plans.append(plan)
             figures["plans"].append(plan_check(plan, on_course, course))
     return Validation(figures, series, on_course, course, runs, plans)
+
+
+def _rider_values(rider: Rider) -> dict[str, Any]:
+    """The rider's fitted fields, for the report (what the validation was run with)."""
+    names = ("mass_kg", "drag_area_m2", "crr", "critical_power_w", "w_prime_j",
+             "drivetrain_efficiency", "max_lateral_accel_mps2")
+    return {n: (round(v, 5) if isinstance(v, float) else v)
+            for n in names if (v := getattr(rider, n, None)) is not None}
 
 
 def holdout(rides: list[str | Path], courses: list[Course],
@@ -136,7 +151,7 @@ def holdout(rides: list[str | Path], courses: list[Course],
         except CalibrationError as err:
             out.append({"held_out": str(ride), "refused": str(err)})
             continue
-        phys = val.figures["physics"][-1]  # the last run: in the day's wind when fitted
+        phys = val.figures["physics"][-1]  # the last run: the ride's inputs, the day's wind
         out.append({"held_out": str(ride), "trained_on": [str(r) for r in train],
                     "model": phys["model"], "conditions": phys["conditions"],
                     "cda_m2": round(fit.rider.drag_area_m2, 4),

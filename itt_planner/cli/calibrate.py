@@ -85,7 +85,9 @@ def _human_validation(r: dict[str, Any]) -> str:
               f"{p['ride_moving_s']} s ({p['finish_error_pct']:+.2f} %), speed MAE "
               f"{p['mae_kmh']} RMSE {p['rmse_kmh']} bias {p['bias_kmh']} km/h, "
               f"{100 * p['share_within_2kmh']:.0f} % within 2 km/h; noise floor "
-              f"{p['noise_floor_kmh']} km/h" for p in r["physics"]]
+              f"{p['noise_floor_kmh']} km/h"
+              + (f"; ride's inputs {p['ride_inputs']}" if "ride_inputs" in p else "")
+              for p in r["physics"]]
     if "physics_3d" in r:
         lines.append(f"  physics 3d: {r['physics_3d']}")
     lines += [f"  plan {p['model']} [{p['solver_status']}]: {p['plan_finish_s']} s vs ride "
