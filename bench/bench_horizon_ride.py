@@ -15,7 +15,7 @@ benchmark measures and held a replay for minutes on this ride.
 
 Usage: .venv/bin/python bench/bench_horizon_ride.py [--rider RIDER.yaml] (default:
        bench/bologna_rider.yaml) [--ride FILE.tcx] [--model 3d|1d] [--cache-dir DIR]
-       [--stop-s SECONDS] [--course-replan-period 0]
+       [--stop-s SECONDS] [--course-replan-period 0] [--plan FILE.plan.npz]
 """
 
 from __future__ import annotations
@@ -59,12 +59,13 @@ def main() -> None:
     ap.add_argument("--cache-dir", default=".itt_cache")
     ap.add_argument("--stop-s", type=float, default=math.inf, help="replay this much only")
     ap.add_argument("--course-replan-period", type=float, default=0.0)
+    ap.add_argument("--plan", default="", help="a saved full-course plan (else the cache's)")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "ride.mcap"
         import_ride(args.ride, log)
         config = SessionConfig(course=str(args.ride), rider=args.rider, model=args.model,
-                               plan_cache=args.cache_dir, deterministic=True,
+                               plan=args.plan, plan_cache=args.cache_dir, deterministic=True,
                                course_replan_period_s=args.course_replan_period)
         engine = build_engine(config)
         session = RideSession(config, engine, keep_advice=True)

@@ -39,6 +39,7 @@ from itt_planner.errors import SolveError
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
+from itt_planner.ocp.course_nlp import start_speed
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.plan import Plan
@@ -68,14 +69,55 @@ class CourseReplanSettings:
     ocp: OcpSettings = field(default_factory=lambda: OcpSettings(max_cpu_time_s=60.0))
 
 
-def start_from(planner: HorizonPlanner, state: RiderState, s_m: float) -> Start:
+#: States of a re-solve's start the rider's estimate does not measure: the lean, its rate
+#: and the steering. They are left to the solver (`solve_plan(free_start=)`); the plan's
+#: values where the rider is are only their guess. Fixed at the plan's, a re-solve
+#: started from a roll state that belongs to the plan's speed, not the rider's: on the
+#: Zwift Bologna ride (bench/RESULTS.md, 2026-12-01, issue 14) the plan rides its corners
+#: on the inside edge of the road (C11 active), and a rider 0.9 m/s slower than the plan
+#: there, leaning 0.119 rad where the plan's steering at the rider's speed balances
+#: 0.102, could only catch the lean by steering further in, off the road:
+#: Infeasible_Problem_Detected after 119 iterations. Free, the same re-solve converged in
+#: 43. At a chicane (5.3 km) the plan's lean lags its steering, and the rider's
+#: measured power at that lean broke C15 at the start node: no fixed lean fits there.
+UNMEASURED_STATES = ("phi", "phi_dot", "delta_n")
+
+
+def free_states(start: Start, launch_mps: float) -> tuple[str, ...]:
+    """The states a re-solve from `start` leaves to the solver: `UNMEASURED_STATES`, or
+    for a standing start (`start_from`: the launch speed, no faster) only the steering: a
+    stopped rider is upright and still, on a foot. (Free, the solver started a rider
+    stopped at the apex of a hairpin at 1 m/s leaning 0.29 rad: verified, but no stopped
+    rider is in that state.)"""
+    return ("delta_n",) if start.state.get("v", 0.0) <= launch_mps else UNMEASURED_STATES
+
+
+def start_from(planner: HorizonPlanner, state: RiderState, s_m: float,
+               settings: OcpSettings | None = None) -> Start:
     """The OCP start at `s_m`: the horizon model's initial state from `state` (clipped so
     the NLP is feasible: `HorizonPlanner.initial_state`) and the lean of the planner's
-    plan there (the estimate has none; the rider is near the plan's line)."""
-    x0 = planner.initial_state(state, s_m)
+    plan there (the estimate has none; the rider is near the plan's line). The lean, its
+    rate and the steering are only the guess: the re-solve leaves them free
+    (`UNMEASURED_STATES`).
+
+    A rider slower than the OCP's launch speed (`course_nlp.start_speed` for `settings`:
+    stopped at a pause, or rolling off again) starts as at the start line instead: the
+    launch speed at critical power, upright. A speed of 0 has no place in the OCP (its
+    spatial ODE divides by the speed; the NLP bounds it below by `V_MIN_MPS`), and a
+    rider held at the clipped 1 m/s with the 0 W a stopped power meter reads could not
+    stay above that bound on a climb while the power ramps up at its rate limit.
+    """
+    x0 = dict(zip(planner.state_names, map(float, planner.initial_state(state, s_m)),
+                  strict=True))
     plan = planner.plan
-    return Start(s_m=s_m, state={**dict(zip(planner.state_names, map(float, x0), strict=True)),
-                                 "phi": float(plan.at("phi_rad", s_m)),
+    rider = planner.rider
+    launch = start_speed(rider, planner.conditions, settings or OcpSettings())
+    if not state.speed_mps > launch:  # stopped (or no speed estimate): `free_states`
+        # Along the line (a GPS heading at rest is noise), as at the start line.
+        x0 |= {"v": launch, "w_n": rider.critical_power_w / rider.max_power_w,
+               "alpha": float(plan.at("alpha_rad", s_m))}
+        return Start(s_m=s_m, state={**x0, "phi": 0.0, "phi_dot": 0.0})
+    return Start(s_m=s_m, state={**x0, "phi": float(plan.at("phi_rad", s_m)),
                                  "phi_dot": float(plan.at("phi_dot_radps", s_m))})
 
 
@@ -181,7 +223,9 @@ def _worker_main(owner_pid: int) -> None:
     result = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
     course, rider, conditions, settings, guess, start = pickle.loads(sys.stdin.buffer.read())
-    plan = solve_plan(course, rider, conditions, settings, model="3d", guess=guess, start=start)
+    free = free_states(start, start_speed(rider, conditions, settings))
+    plan = solve_plan(course, rider, conditions, settings, model="3d", guess=guess, start=start,
+                      free_start=free)
     with result:
         result.write(pickle.dumps(plan))
 

@@ -91,7 +91,7 @@ class PlanInForce:
         """Ask for the rest of the course re-solved from `state` with the planner's
         rider (the CP in use) (`course_replan`; the replanner rate-limits)."""
         s0 = float(np.clip(state.s_m, 0.0, self.course.length_m - 1.0))
-        start = start_from(planner, state, s0)
+        start = start_from(planner, state, s0, self._replanner.settings.ocp)
         if self._replanner.request(stamp_s, planner.rider, self.plan, start):
             self._stats["course_replans_asked"] += 1
             log.info("engine: off the plan at s=%.0f m (W' %.0f J, CP %.0f W): re-solving the "

@@ -17,6 +17,7 @@ free (or the rider's state at a `Start`). Launch: the start speed is raised from
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -107,9 +108,11 @@ class CourseNlp:
 
 def course_nlp(course: Course, rider: Rider, conditions: Conditions, settings: OcpSettings,
                model: str, nodes: np.ndarray, v0: float, start: Start | None,
-               guess: Plan | None) -> CourseNlp:
+               guess: Plan | None, free_start: Sequence[str] = ()) -> CourseNlp:
     """The NLP of `model` on the mesh `nodes`, launched at `v0` (or from `start`), with
-    the default guess or `guess` moved onto the mesh."""
+    the default guess or `guess` moved onto the mesh. `free_start`: states of a `start`
+    left to the solver within their simple bounds (the start's value is only their
+    guess): what the rider's estimate does not measure (`course_replan.start_from`)."""
     tr = _transcription(model, settings.wprime_model, len(nodes) - 1,
                         mesh_substeps(model, nodes), settings.jit)
     spm = tr.model
@@ -132,6 +135,11 @@ def course_nlp(course: Course, rider: Rider, conditions: Conditions, settings: O
         ie = spm.index("e_n")
         x_guess[ie] = x_guess[ie] - (x_guess[ie, 0] - lbx[ie, 0])
     x_guess[:, 0] = lbx[:, 0]
+    if start is not None:
+        for name in free_start:
+            if name in spm.states:  # the bounds of any other node
+                i = spm.index(name)
+                lbx[i, 0], ubx[i, 0] = lbx[i, 1], ubx[i, 1]
     lbw, ubw = bounds.decision(tr.layout)
     return CourseNlp(tr, nodes, tr.params(road_data(course, nodes), par), lbw, ubw,
                      np.clip(x_guess, lbx, ubx), u_guess)

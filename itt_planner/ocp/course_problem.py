@@ -58,6 +58,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -111,11 +112,13 @@ _REFINE_ROUNDS = 2
 
 def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions(),
                settings: OcpSettings = OcpSettings(), *, model: str = "3d",
-               guess: Plan | None = None, start: Start | None = None) -> Plan:
+               guess: Plan | None = None, start: Start | None = None,
+               free_start: Sequence[str] = ()) -> Plan:
     """Solve the minimum-time OCP over the whole course, verify it, return the `Plan`.
 
     `start`: solve the rest of the course from a rider's state instead (the pacing
     engine's re-plan after the rider left the plan); the end conditions stay.
+    `free_start`: states of `start` left to the solver (`course_nlp.course_nlp`).
 
     `guess`: start IPOPT from this plan (any mesh, either model; `plan_guess`) instead
     of the default guess; the boundary conditions stay those of `rider`/`conditions`.
@@ -145,7 +148,8 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     v0 = start_speed(rider, conditions, settings)
     if start is not None:
         v0 = float(start.state.get("v", v0))
-    solve = _CourseSolve(course, rider, conditions, settings, model, guess, start, v0,
+    solve = _CourseSolve(course, rider, conditions, settings, model, guess, start,
+                         tuple(free_start), v0,
                          _Budget(max_iter, seconds, cpu_start, settings.tol,
                                  f"full-course {model} OCP on {course.name}"))
     cap = speed_spacing_cap(course, rider, conditions, model, start_m, v0)
@@ -167,7 +171,7 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     meta = {**plan.meta, "build_time_s": t_build,
             "budget": {"max_iter": max_iter, "seconds": seconds}}
     if start is not None:
-        meta["start"] = {"s_m": start.s_m, "state": dict(start.state)}
+        meta["start"] = {"s_m": start.s_m, "state": dict(start.state), "free": list(free_start)}
     if guess is not None:
         meta["guess"] = {"model": guess.model, "n_nodes": guess.n_nodes,
                          "finish_time_s": guess.finish_time_s}
@@ -230,6 +234,7 @@ class _CourseSolve:
     model: str
     guess: Plan | None
     start: Start | None
+    free_start: tuple[str, ...]
     v0: float
     budget: _Budget
 
@@ -247,7 +252,7 @@ class _CourseSolve:
 
     def nlp(self, nodes: np.ndarray, guess: Plan | None) -> CourseNlp:
         return course_nlp(self.course, self.rider, self.conditions, self.settings, self.model,
-                          nodes, self.v0, self.start, guess)
+                          nodes, self.v0, self.start, guess, self.free_start)
 
     def first(self, prob: CourseNlp, cap: np.ndarray) -> tuple[CourseNlp, SolveResult]:
         """The first start and the restarts before a verification (module docstring):
@@ -278,7 +283,7 @@ class _CourseSolve:
         st, left_m = self.settings, self.course.length_m - self.start_m
         base = solve_plan(self.course, self.rider, self.conditions, dataclasses.replace(
             st, max_iter=None, max_cpu_time_s=min(secs / 3, st.budget("1d", left_m)[1])),
-            model="1d", start=self.start)
+            model="1d", start=self.start, free_start=self.free_start)
         self.budget.attempts.append({
             "strategy": "1d plan for a warm start", "status": base.solver_status,
             "iterations": base.iterations, "n_nodes": base.n_nodes,
