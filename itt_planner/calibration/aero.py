@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -61,6 +62,8 @@ class AeroSettings:
         simulated_rmse_m: a virtual elevation this close to the recorded one (m RMS)
             is no real road: barometers quantise by ~0.2 m and drift, gusts vary.
         allow_simulated: fit such a ride anyway.
+        setup_of_ride: per ride, the index of its setup (position or bike): one CdA is
+            fitted per setup, crr, mass and wind shared as before; empty: one setup.
     """
 
     mass_kg: float | None = None
@@ -74,6 +77,7 @@ class AeroSettings:
     mass_range_kg: tuple[float, float] = (45.0, 150.0)
     simulated_rmse_m: float = 0.3
     allow_simulated: bool = False
+    setup_of_ride: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,6 +92,8 @@ class AeroFit:
         stretches: (start, end) sample indices of the FIRST ride's stretches (figure).
         virtual_ele_m: the first ride's virtual elevation on those samples (NaN
             elsewhere), shifted to the recorded one per stretch.
+        setup_cda_m2, setup_cda_std_m2: CdA and its sd per setup (`cda_m2` is the
+            first ride's setup's).
     """
 
     cda_m2: float
@@ -107,6 +113,8 @@ class AeroFit:
     air_density_kgpm3: float
     stretches: list[tuple[int, int]] = field(default_factory=list)
     virtual_ele_m: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    setup_cda_m2: tuple[float, ...] = ()
+    setup_cda_std_m2: tuple[float, ...] = ()
 
     def as_dict(self) -> dict[str, object]:
         winds = [wind_meteo(w) for w in self.wind_mps]
@@ -120,7 +128,9 @@ class AeroFit:
                          for (k, d), sd in zip(winds, self.wind_std_mps, strict=True)],
                 "used_s": round(self.used_s, 1), "n_stretches": self.n_stretches,
                 "virtual_elevation_rmse_m": round(self.rmse_m, 2),
-                "air_density_kgpm3": round(self.air_density_kgpm3, 4)}
+                "air_density_kgpm3": round(self.air_density_kgpm3, 4),
+                "setup_cda_m2": [round(c, 4) for c in self.setup_cda_m2],
+                "setup_cda_std_m2": [round(c, 4) for c in self.setup_cda_std_m2]}
 
 
 def wind_meteo(wind_enu_mps: np.ndarray) -> tuple[float, float]:
@@ -131,28 +141,46 @@ def wind_meteo(wind_enu_mps: np.ndarray) -> tuple[float, float]:
 
 
 class _Problem:
-    """The parameters one fit frees (mass, crr, cda, wind per ride) around fixed values."""
+    """The parameters one fit frees (mass, crr, one cda per setup, wind per ride) around
+    fixed values."""
 
     def __init__(self, des: Design, free: tuple[str, ...], fixed: dict[str, float],
-                 fit_wind: bool, mass_range: tuple[float, float]) -> None:
+                 fit_wind: bool, mass_range: tuple[float, float],
+                 setup_of_ride: tuple[int, ...] = ()) -> None:
         self.des, self.free, self.fixed, self.fit_wind = des, free, fixed, fit_wind
+        setups = np.asarray(setup_of_ride or (0,) * des.n_rides, int)
+        self.n_setups = int(setups.max()) + 1
+        self.setup_of_interval = setups[des.ride_of]
+        self.sizes = {k: (self.n_setups if k == "cda" else 1) for k in free}
         lo = {"mass": mass_range[0], "crr": _CRR_BOUNDS[0], "cda": 0.01}
         hi = {"mass": mass_range[1], "crr": _CRR_BOUNDS[1], "cda": 2.0}
         nw = 2 * des.n_rides if fit_wind else 0
-        self.lower = np.array([lo[k] for k in free] + [-_WIND_MAX_MPS] * nw)
-        self.upper = np.array([hi[k] for k in free] + [_WIND_MAX_MPS] * nw)
+        self.n_free = sum(self.sizes.values())
+        self.lower = np.array([lo[k] for k in free for _ in range(self.sizes[k])]
+                              + [-_WIND_MAX_MPS] * nw)
+        self.upper = np.array([hi[k] for k in free for _ in range(self.sizes[k])]
+                              + [_WIND_MAX_MPS] * nw)
 
-    def unpack(self, x: np.ndarray) -> tuple[float, float, float, np.ndarray]:
-        values = dict(self.fixed)
-        values.update(zip(self.free, x[:len(self.free)], strict=True))
-        wind = (x[len(self.free):].reshape(-1, 2) if self.fit_wind
+    def unpack(self, x: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
+        """(mass, crr, CdA per setup, wind per ride)."""
+        values: dict[str, Any] = dict(self.fixed)
+        i = 0
+        for k in self.free:
+            values[k] = x[i] if self.sizes[k] == 1 else x[i:i + self.sizes[k]]
+            i += self.sizes[k]
+        cda = np.broadcast_to(np.asarray(values["cda"], float), (self.n_setups,))
+        wind = (x[self.n_free:].reshape(-1, 2) if self.fit_wind
                 else np.zeros((self.des.n_rides, 2)))
-        return values["mass"], values["crr"], values["cda"], wind
+        return float(values["mass"]), float(values["crr"]), cda, wind
+
+    def residual(self, x: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+        mass, crr, cda, wind = self.unpack(x)
+        return self.des.residual(mass, crr, cda[self.setup_of_interval], wind, weights=weights)
 
     def solve(self, x0: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
         x0 = np.clip(x0, self.lower + 1e-9, self.upper - 1e-9)
         def residual(x: np.ndarray) -> np.ndarray:
-            return self.des.residual(*self.unpack(x), weights=weights)
+            return self.residual(x, weights)
 
         res = least_squares(residual, x0, bounds=(self.lower, self.upper), x_scale="jac")
         return np.asarray(res.x)
@@ -160,10 +188,11 @@ class _Problem:
     def start(self, mass: float, crr: float) -> np.ndarray:
         guess = {"mass": mass, "crr": crr, "cda": 0.3}
         nw = 2 * self.des.n_rides if self.fit_wind else 0
-        return np.array([guess[k] for k in self.free] + [0.0] * nw)
+        return np.array([guess[k] for k in self.free for _ in range(self.sizes[k])]
+                        + [0.0] * nw)
 
     def rmse(self, x: np.ndarray) -> float:
-        return float(np.sqrt(np.mean(self.des.residual(*self.unpack(x)) ** 2)))
+        return float(np.sqrt(np.mean(self.residual(x) ** 2)))
 
 
 def fit_aero(rides: list[RideSeries], st: AeroSettings) -> AeroFit:
@@ -184,13 +213,14 @@ def fit_aero(rides: list[RideSeries], st: AeroSettings) -> AeroFit:
             "where the power balance holds (pedalling, moving, no braking or hard cornering); "
             "need at least 3")
     mass0 = st.mass_kg if st.mass_kg is not None else 80.0
+    setups = st.setup_of_ride
     if st.mass_kg is None:
         prob = _Problem(des, ("mass", "cda"), {"crr": st.crr_prior}, st.fit_wind,
-                        st.mass_range_kg)
+                        st.mass_range_kg, setups)
         note = f"mass estimated with crr at the prior {st.crr_prior} (mass and crr are collinear)"
     else:
         prob = _Problem(des, ("crr", "cda"), {"mass": st.mass_kg}, st.fit_wind,
-                        st.mass_range_kg)
+                        st.mass_range_kg, setups)
         note = "fitted"
     x = prob.solve(prob.start(mass0, st.crr_prior))
     mass, crr, cda, wind = prob.unpack(x)
@@ -198,43 +228,50 @@ def fit_aero(rides: list[RideSeries], st: AeroSettings) -> AeroFit:
         raise CalibrationError(f"{names}: the mass is not identified by the ride (the best fit "
                                f"is at the edge of {st.mass_range_kg} kg); pass --mass-kg")
     # The closest ANY crr and CdA get at this mass: the test of a too-perfect balance.
-    free = _Problem(des, ("crr", "cda"), {"mass": mass}, st.fit_wind, st.mass_range_kg)
+    free = _Problem(des, ("crr", "cda"), {"mass": mass}, st.fit_wind, st.mass_range_kg, setups)
     x_free = free.solve(free.start(mass, crr))
     rmse_free = free.rmse(x_free)
     if st.mass_kg is not None and not st.crr_band[0] <= crr <= st.crr_band[1]:
         note = (f"fitted crr {crr:.4f} is outside {list(st.crr_band)}: the ride cannot separate "
                 f"rolling from air drag; crr fixed to {st.crr_prior}")
         prob = _Problem(des, ("cda",), {"mass": st.mass_kg, "crr": st.crr_prior}, st.fit_wind,
-                        st.mass_range_kg)
+                        st.mass_range_kg, setups)
         x = prob.solve(prob.start(mass0, st.crr_prior))
         mass, crr, cda, wind = prob.unpack(x)
-    if not PHYSICAL_CDA_M2[0] <= cda <= PHYSICAL_CDA_M2[1]:
-        raise CalibrationError(
-            f"{names}: speed and power disagree with any physical rider: the best power "
-            f"balance needs CdA {cda:.3f} m^2 (crr {crr:.4f}, mass {mass:.0f} kg), outside "
-            f"{PHYSICAL_CDA_M2[0]}-{PHYSICAL_CDA_M2[1]} m^2. The speed is probably simulated "
-            "(a virtual ride), or the mass or the power meter is wrong")
+    for value in cda:
+        if not PHYSICAL_CDA_M2[0] <= value <= PHYSICAL_CDA_M2[1]:
+            raise CalibrationError(
+                f"{names}: speed and power disagree with any physical rider: the best power "
+                f"balance needs CdA {value:.3f} m^2 (crr {crr:.4f}, mass {mass:.0f} kg), outside "
+                f"{PHYSICAL_CDA_M2[0]}-{PHYSICAL_CDA_M2[1]} m^2. The speed is probably simulated "
+                "(a virtual ride), or the mass or the power meter is wrong")
     if rmse_free < st.simulated_rmse_m and not st.allow_simulated:
         raise CalibrationError(
             f"{names}: the speed is simulated, not measured: power, speed and altitude obey "
             f"one power balance to {rmse_free:.2f} m RMS of virtual elevation over "
-            f"{len(des.spans)} stretches (CdA {cda:.3f} m^2, mass {mass:.0f} kg), tighter than "
-            f"any real altimeter and wind allow (>= {st.simulated_rmse_m} m). This is a virtual "
-            "ride (Zwift and similar): its speed is the game's physics, not the rider's; "
+            f"{len(des.spans)} stretches (CdA {cda[0]:.3f} m^2, mass {mass:.0f} kg), tighter "
+            f"than any real altimeter and wind allow (>= {st.simulated_rmse_m} m). This is a "
+            "virtual ride (Zwift and similar): its speed is the game's physics, not the rider's; "
             "--allow-virtual fits the game's rider anyway")
-    mass, crr, cda = float(mass), float(crr), float(cda)
-    boot = _bootstrap(prob, x, len(des.spans), st)
-    sd = np.std(np.array([prob.unpack(b)[:3] for b in boot]), axis=0, ddof=1)
-    wind_sd = np.std(np.array([prob.unpack(b)[3] for b in boot]), axis=0, ddof=1)
+    boot = [prob.unpack(b) for b in _bootstrap(prob, x, len(des.spans), st)]
+    mass_sd, crr_sd = (float(np.std(np.array([float(b[i]) for b in boot]), ddof=1))
+                       for i in (0, 1))
+    cda_sd = np.std(np.array([b[2] for b in boot]), axis=0, ddof=1)
+    wind_sd = np.std(np.array([b[3] for b in boot]), axis=0, ddof=1)
     first = [(lo, hi) for k, lo, hi in des.spans if k == 0]
+    own = setups[0] if setups else 0  # the first ride's setup: the rider's CdA
     return AeroFit(
-        cda_m2=cda, cda_std_m2=float(sd[2]), mass_kg=mass, mass_std_kg=float(sd[0]),
-        mass_estimated=st.mass_kg is None, crr=crr, crr_std=float(sd[1]),
+        cda_m2=float(cda[own]), cda_std_m2=float(cda_sd[own]), mass_kg=mass,
+        mass_std_kg=mass_sd, mass_estimated=st.mass_kg is None, crr=crr, crr_std=crr_sd,
         crr_fixed=note != "fitted", crr_note=note, wind_mps=wind, wind_std_mps=wind_sd,
         used_s=float(sum(rides[k].t_s[hi] - rides[k].t_s[lo] for k, lo, hi in des.spans)),
         n_stretches=len(des.spans), rmse_m=prob.rmse(x),
         air_density_kgpm3=float(np.mean(np.concatenate([r.rho_kgpm3 for r in rides]))),
-        stretches=first, virtual_ele_m=_virtual_elevation(rides[0], des, mass, crr, cda, wind))
+        stretches=first,
+        virtual_ele_m=_virtual_elevation(rides[0], des, mass, crr,
+                                         cda[prob.setup_of_interval], wind),
+        setup_cda_m2=tuple(float(c) for c in cda),
+        setup_cda_std_m2=tuple(float(c) for c in cda_sd))
 
 
 def fit_day_wind(ride: RideSeries, mass_kg: float, crr: float, cda_m2: float,
@@ -268,8 +305,8 @@ def _bootstrap(prob: _Problem, x: np.ndarray, n_stretches: int, st: AeroSettings
     return out
 
 
-def _virtual_elevation(ride: RideSeries, des: Design, mass: float, crr: float, cda: float,
-                       wind: np.ndarray) -> np.ndarray:
+def _virtual_elevation(ride: RideSeries, des: Design, mass: float, crr: float,
+                       cda: np.ndarray, wind: np.ndarray) -> np.ndarray:
     """The first ride's virtual elevation on its samples (NaN off-stretch), each stretch
     shifted to the recorded altitude's mean (the fit's free offset)."""
     height = des.virtual_height(mass, crr, cda, wind)

@@ -122,9 +122,10 @@ class Design:
         cs = np.concatenate([[0.0], np.cumsum(inc)])
         return cast(np.ndarray, cs[self.cum_at] - cs[self.cum_base])
 
-    def virtual_height(self, mass_kg: float, crr: float, cda_m2: float,
+    def virtual_height(self, mass_kg: float, crr: float, cda_m2: float | np.ndarray,
                        wind: np.ndarray) -> np.ndarray:
-        """Height gained since each stretch start that the power explains (m)."""
+        """Height gained since each stretch start that the power explains (m); `cda_m2`
+        one value, or one per interval (a CdA per setup)."""
         g = GRAVITY_MPS2
         u = wind[self.ride_of, 0] * self.cos_h + wind[self.ride_of, 1] * self.sin_h
         air = self.v_mps - u
@@ -133,7 +134,7 @@ class Design:
                   - crr * self._cum(self.dist_m) - self._cum(drag) / (mass_kg * g))
         return cast(np.ndarray, height)
 
-    def residual(self, mass_kg: float, crr: float, cda_m2: float, wind: np.ndarray,
+    def residual(self, mass_kg: float, crr: float, cda_m2: float | np.ndarray, wind: np.ndarray,
                  weights: np.ndarray | None = None) -> np.ndarray:
         """Recorded minus virtual height, demeaned per stretch (weighted per stretch)."""
         r = self.h_m - self.virtual_height(mass_kg, crr, cda_m2, wind)

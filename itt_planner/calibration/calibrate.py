@@ -20,7 +20,12 @@ from typing import Any, cast
 from itt_planner.calibration.aero import AeroFit, AeroSettings, fit_aero
 from itt_planner.calibration.cornering import CorneringFit, fit_cornering
 from itt_planner.calibration.power_curve import CpFit, fit_cp, mmp_curve
-from itt_planner.calibration.ride_data import CalibrationError, RideSeries, prepare_ride
+from itt_planner.calibration.ride_data import (
+    CalibrationError,
+    RideSeries,
+    prepare_ride,
+    record_setup,
+)
 from itt_planner.course.geometry import Course
 from itt_planner.course.track_files import Recording, read_recording
 from itt_planner.errors import CourseError
@@ -39,6 +44,8 @@ class CalibrationOptions:
             own GPS track is fitted as its course (for the corners).
         allow_virtual: fit a ride whose speed is simulated (a virtual ride) anyway.
         preset: the rider the unfitted fields come from.
+        setups: per ride, its setup (position or bike): one CdA per distinct setup;
+            empty: the bike profile each FIT file names, else one setup for all.
     """
 
     mass_kg: float | None = None
@@ -49,6 +56,7 @@ class CalibrationOptions:
     allow_virtual: bool = False
     preset: str = "paper"
     name: str = "calibrated"
+    setups: tuple[str, ...] = ()
 
 
 @dataclass(eq=False)
@@ -65,6 +73,16 @@ class CalibrationResult:
     cornering: CorneringFit | None = None
     refusals: dict[str, str] = field(default_factory=dict)
     options: CalibrationOptions = CalibrationOptions()
+    setup_names: list[str] = field(default_factory=list)
+    setup_of_ride: list[int] = field(default_factory=list)
+
+    def setup_riders(self) -> dict[str, Rider]:
+        """The rider in each setup (its CdA), when the rides have several setups."""
+        if self.aero is None or len(self.setup_names) < 2:
+            return {}
+        return {name: dataclasses.replace(self.rider, name=f"{self.rider.name}-{name}",
+                                          drag_area_m2=cda)
+                for name, cda in zip(self.setup_names, self.aero.setup_cda_m2, strict=True)}
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary (the CLI's `--json` object)."""
@@ -80,7 +98,20 @@ class CalibrationResult:
             "refusals": dict(self.refusals),
             "temperature_c": [r.temperature_c for r in self.rides],
             "drivetrain_efficiency": self.options.drivetrain_efficiency,
+            "setups": self._setups(),
         }
+
+    def _setups(self) -> dict[str, Any]:
+        """Per setup: its rides and, when fitted, its CdA with the bootstrap sd."""
+        out: dict[str, Any] = {}
+        for j, name in enumerate(self.setup_names):
+            row: dict[str, Any] = {"rides": [src for src, k in zip(
+                self.sources, self.setup_of_ride, strict=True) if k == j]}
+            if self.aero is not None and self.aero.setup_cda_m2:
+                row.update(cda_m2=round(self.aero.setup_cda_m2[j], 4),
+                           cda_std_m2=round(self.aero.setup_cda_std_m2[j], 4))
+            out[name] = row
+        return out
 
 
 def rider_fields() -> set[str]:
@@ -126,9 +157,12 @@ def calibrate(rides: Sequence[str | Path | Recording],
     series = load_rides(list(rides), options.temperature_c)
     result = CalibrationResult(sources=[r.source for r in series], rider=PRESETS[options.preset],
                                rides=series, options=options)
+    result.setup_names, result.setup_of_ride = _setups(series, options.setups)
     settings = AeroSettings(mass_kg=options.mass_kg,
                             drivetrain_efficiency=options.drivetrain_efficiency,
-                            crr_prior=options.crr_prior, allow_simulated=options.allow_virtual)
+                            crr_prior=options.crr_prior, allow_simulated=options.allow_virtual,
+                            setup_of_ride=tuple(result.setup_of_ride)
+                            if len(result.setup_names) > 1 else ())
     try:
         result.aero = fit_aero(series, settings)
     except CalibrationError as err:
@@ -148,6 +182,20 @@ def calibrate(rides: Sequence[str | Path | Recording],
         raise CalibrationError(f"nothing could be calibrated: {reasons}")
     result.rider = _rider(result, options)
     return result
+
+
+def _setups(rides: list[RideSeries], given: tuple[str, ...]) -> tuple[list[str], list[int]]:
+    """Setup names (first-seen order) and each ride's index among them.
+
+    Raises:
+        CalibrationError: `given` names a number of setups other than one per ride.
+    """
+    if given and len(given) != len(rides):
+        raise CalibrationError(f"{len(given)} setups given for {len(rides)} rides: give one "
+                               "--setup per ride, in the rides' order")
+    labels = list(given) or [record_setup(Path(r.source)) or "default" for r in rides]
+    names = list(dict.fromkeys(labels))
+    return names, [names.index(label) for label in labels]
 
 
 def _rider(result: CalibrationResult, options: CalibrationOptions) -> Rider:
@@ -182,6 +230,8 @@ def rider_yaml(result: CalibrationResult) -> str:
                             if a.mass_estimated else "given")
         notes["drag_area_m2"] = (f"+- {a.cda_std_m2:.4f} (bootstrap, {a.n_stretches} stretches, "
                                  f"rho {a.air_density_kgpm3:.3f} kg/m^3)")
+        if len(result.setup_names) > 1:
+            notes["drag_area_m2"] += f", setup {result.setup_names[result.setup_of_ride[0]]}"
         notes["crr"] = "fixed: " + a.crr_note if a.crr_fixed else f"+- {a.crr_std:.5f}"
     if result.cp_2p is not None:
         c = result.cp_2p
@@ -201,7 +251,9 @@ def rider_yaml(result: CalibrationResult) -> str:
     winds = [f"# wind of the day fitted on {src}: {w['speed_kmh']} +- {w['std_kmh']} km/h from "
              f"{w['from_deg']:.0f} deg (a condition, not a rider field)"
              for src, w in zip(result.sources, day_winds, strict=False)]
-    lines = [f"# itt-planner calibrate: {', '.join(result.sources)}", *winds,
+    setups = [f"# CdA of setup {name}: {r.drag_area_m2:.4f} m^2 (--setup)"
+              for name, r in result.setup_riders().items()]
+    lines = [f"# itt-planner calibrate: {', '.join(result.sources)}", *winds, *setups,
              *(f"# refused {k}: {v}" for k, v in result.refusals.items()),
              f"preset: {opts.preset}"]
     for name in fitted:
@@ -230,3 +282,23 @@ def write_rider(result: CalibrationResult, path: str | Path) -> Path:
     except OSError as err:
         raise CalibrationError(f"{path}: cannot write the rider ({err})") from None
     return path
+
+
+def write_setup_riders(result: CalibrationResult, path: str | Path) -> list[Path]:
+    """With several setups, one rider file per setup beside `path` (`me.yaml` ->
+    `me.<setup>.yaml`): the same rider with that setup's CdA.
+
+    Raises:
+        CalibrationError: a file cannot be written.
+    """
+    path = Path(path)
+    out = []
+    for j, (name, rider) in enumerate(result.setup_riders().items()):
+        assert result.aero is not None  # setup_riders() is empty without it
+        aero = dataclasses.replace(result.aero, cda_m2=result.aero.setup_cda_m2[j],
+                                   cda_std_m2=result.aero.setup_cda_std_m2[j])
+        one = dataclasses.replace(result, rider=rider, aero=aero, setup_names=[name],
+                                  setup_of_ride=[0] * len(result.sources))
+        safe = "".join(c if c.isalnum() or c in "-_" else "_" for c in name)
+        out.append(write_rider(one, path.with_name(f"{path.stem}.{safe}{path.suffix}")))
+    return out

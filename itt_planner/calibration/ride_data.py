@@ -108,6 +108,22 @@ def record_temperature_c(path: Path) -> float | None:
     return float(np.median(values)) if values else None
 
 
+def record_setup(path: Path) -> str | None:
+    """The bike profile a FIT file names (`bike_profile.name`, e.g. "TT bike"), when it
+    names exactly one; None otherwise (most files name none)."""
+    if path.suffix.lower() != ".fit" or not path.is_file():
+        return None
+    import fitdecode  # noqa: PLC0415
+
+    names: set[str] = set()
+    with fitdecode.FitReader(str(path), check_crc=fitdecode.CrcCheck.WARN) as reader:
+        for frame in reader:
+            if frame.frame_type == fitdecode.FIT_FRAME_DATA and frame.name == "bike_profile":
+                names.update(str(f.value).strip() for f in frame.fields
+                             if f.name == "name" and f.value)
+    return names.pop() if len(names) == 1 else None
+
+
 def gps_speed_mps(lat_deg: np.ndarray, lon_deg: np.ndarray, t_s: np.ndarray) -> np.ndarray:
     """Speed of each sample from the great-circle step to the previous fix (NaN at gaps)."""
     lat, lon = np.radians(lat_deg), np.radians(lon_deg)

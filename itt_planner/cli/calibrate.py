@@ -31,9 +31,12 @@ def _human_calibration(r: dict[str, Any]) -> str:
     if c:
         lines.append(f"  cornering: {c['max_lateral_accel_mps2']} +- {c['std_mps2']} m/s^2 "
                      f"(lean {c['max_lean_deg']} deg, {c['corners_used']} corners)")
+    if len(r["setups"]) > 1:
+        lines += [f"  setup {name}: CdA {row.get('cda_m2')} +- {row.get('cda_std_m2')} m^2 "
+                  f"({len(row['rides'])} rides)" for name, row in r["setups"].items()]
     lines += [f"  REFUSED {k}: {v}" for k, v in r["refusals"].items()]
     if r.get("output"):
-        lines.append(f"  wrote {r['output']}")
+        lines.append(f"  wrote {', '.join([r['output'], *r.get('output_per_setup', [])])}")
     return "\n".join(lines)
 
 
@@ -51,21 +54,28 @@ def calibrate_cli(
                                                help="Air temperature (default: the record's)."),
     allow_virtual: bool = typer.Option(False, "--allow-virtual",
                                        help="Fit a ride whose speed is simulated anyway."),
+    setup: list[str] = typer.Option([], "--setup", help="Setup (position or bike) of each ride, "
+                                    "in order (repeat): one CdA per setup. Default: the FIT "
+                                    "files' bike profile names, else one setup."),
     report: Path | None = typer.Option(None, "--report", help="Write an HTML report here."),
     as_json: bool = JSON_OPTION,
 ) -> None:
     """Fit CdA, crr, CP, W' and the cornering limit of one rider to ride files."""
     from itt_planner.calibration import CalibrationOptions, calibrate, write_rider  # noqa: PLC0415
+    from itt_planner.calibration.calibrate import write_setup_riders  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         options = CalibrationOptions(mass_kg=mass_kg, drivetrain_efficiency=efficiency,
                                      temperature_c=temperature_c, course=course,
-                                     allow_virtual=allow_virtual,
+                                     allow_virtual=allow_virtual, setups=tuple(setup),
                                      name=output.name.split(".")[0] if output else "calibrated")
         result = calibrate(list(rides), options)
         summary = result.as_dict()
         if output is not None:
             summary["output"] = str(write_rider(result, output))
+            per_setup = write_setup_riders(result, output)
+            if per_setup:
+                summary["output_per_setup"] = [str(p) for p in per_setup]
         if report is not None:
             from itt_planner.calibration.figures import write_calibration_report  # noqa: PLC0415
 

@@ -21,7 +21,7 @@ from itt_planner.calibration import (
     prepare_ride,
     write_rider,
 )
-from itt_planner.calibration.calibrate import load_rides
+from itt_planner.calibration.calibrate import CalibrationResult, load_rides, write_setup_riders
 from itt_planner.calibration.ride_data import air_density_kgpm3
 from itt_planner.course.geometry import Course
 from itt_planner.course.track_files import Recording
@@ -147,3 +147,31 @@ def test_virtual_ride_is_refused_as_simulated(data_file: Callable[[str], Path]) 
     assert "speed is simulated" in result.refusals["aero"]
     forced = calibrate([path], CalibrationOptions(allow_virtual=True))
     assert forced.aero is not None and forced.aero.rmse_m < 0.5
+
+
+def test_cda_per_setup(synthetic: Synthetic, tmp_path: Path) -> None:
+    """Two rides, two setups (issue 15, "CdA per position or bike"): the second ride is
+    the first with the power a CdA 0.05 m^2 larger needs at the same speeds (still air,
+    as simulated). One CdA per setup, crr and mass shared; a rider file per setup."""
+    _, rec = synthetic
+    assert rec.speed_mps is not None and rec.power_w is not None
+    rho = air_density_kgpm3(rec.ele_m, 15.0)
+    v = np.nan_to_num(rec.speed_mps)
+    upright = dataclasses.replace(rec, path=Path("synthetic-upright.csv"),
+                                  power_w=rec.power_w + 0.5 * rho * 0.05 * v ** 3)
+    rides = load_rides([rec, upright], None)
+    fit = fit_aero(rides, AeroSettings(mass_kg=TRUTH.mass_kg, setup_of_ride=(0, 1),
+                                       bootstrap=20))
+    tt, up = fit.setup_cda_m2
+    assert tt == pytest.approx(TRUTH.drag_area_m2, rel=0.05) and fit.cda_m2 == tt
+    assert up - tt == pytest.approx(0.05, rel=0.1)
+    assert all(0 < sd < 0.02 for sd in fit.setup_cda_std_m2)
+    result = CalibrationResult(sources=[r.source for r in rides],
+                               rider=dataclasses.replace(TRUTH, drag_area_m2=tt), rides=rides,
+                               aero=fit, setup_names=["tt", "upright"], setup_of_ride=[0, 1])
+    assert result.as_dict()["setups"]["upright"]["cda_m2"] == pytest.approx(up, abs=1e-4)
+    written = write_setup_riders(result, tmp_path / "me.yaml")
+    assert [p.name for p in written] == ["me.tt.yaml", "me.upright.yaml"]
+    assert load_rider(written[1]).drag_area_m2 == pytest.approx(up, rel=1e-5)
+    with pytest.raises(CalibrationError, match="one --setup per ride"):
+        calibrate([rec, upright], CalibrationOptions(setups=("tt",)))
