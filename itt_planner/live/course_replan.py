@@ -39,8 +39,8 @@ from itt_planner.errors import SolveError
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
-from itt_planner.ocp.course_nlp import start_speed
-from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.course_nlp import PrimalDual, start_speed
+from itt_planner.ocp.course_problem import solve_plan_point
 from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.plan import Plan
 
@@ -137,7 +137,10 @@ class CourseReplanner:
         # One thread that waits on the worker process (it runs no solver itself).
         self._waiter = ThreadPoolExecutor(max_workers=1, thread_name_prefix="course_replan")
         self._worker: subprocess.Popen[bytes] | None = None
-        self._pending: tuple[float, Future[Plan]] | None = None
+        self._pending: tuple[float, Future[tuple[Plan, PrimalDual | None]]] | None = None
+        #: The last plan returned and its primal-dual point: a re-solve from that plan
+        #: starts from it (`solve_plan(warm=)`; the first plan, from the cache, has none).
+        self._point: tuple[Plan, PrimalDual] | None = None
         self._last_request_s = -math.inf
 
     def request(self, stamp_s: float, rider: Rider, guess: Plan, start: Start) -> bool:
@@ -150,7 +153,8 @@ class CourseReplanner:
                 or self.course.length_m - start.s_m < st.min_remaining_m):
             return False
         self._last_request_s = stamp_s
-        job = (self.course, rider, self.conditions, st.ocp, guess, start)
+        warm = self._point[1] if self._point is not None and self._point[0] is guess else None
+        job = (self.course, rider, self.conditions, st.ocp, guess, start, warm)
         self._pending = (stamp_s, self._waiter.submit(self._solve_in_worker, job))
         return True
 
@@ -168,10 +172,12 @@ class CourseReplanner:
                 else stamp_s - asked < self.settings.delay_s):
             return None
         self._pending = None
-        return future.result()
+        plan, point = future.result()
+        self._point = None if point is None else (plan, point)
+        return plan
 
-    def _solve_in_worker(self, job: tuple[Any, ...]) -> Plan:
-        """`solve_plan` on `job` in a fresh Python process (`_worker_main`).
+    def _solve_in_worker(self, job: tuple[Any, ...]) -> tuple[Plan, PrimalDual | None]:
+        """`solve_plan_point` on `job` in a fresh Python process (`_worker_main`).
 
         Why a process: IPOPT's linear solver MUMPS is not thread-safe (Ipopt >= 3.14
         serialises its calls across threads, which would stall the horizon's solves
@@ -179,7 +185,8 @@ class CourseReplanner:
         Why not `multiprocessing`: its "spawn" start re-runs the caller's main script
         in the child (a script without a main guard ran its ride again), and "fork" in
         a process with threads (ROS executors, the engine's inputs) can deadlock. The
-        job and the plan travel pickled over the worker's stdin and stdout.
+        job and the plan (with its primal-dual point) travel pickled over the worker's
+        stdin and stdout.
         """
         worker = subprocess.Popen([sys.executable, "-c", _WORKER, str(os.getpid())],
                                   stdin=subprocess.PIPE, stdout=subprocess.PIPE)
@@ -188,8 +195,8 @@ class CourseReplanner:
         if worker.returncode != 0:
             msg = f"the course re-solve worker exited with code {worker.returncode}"
             raise SolveError(msg, status="worker_failed")
-        plan: Plan = pickle.loads(out)
-        return plan
+        result: tuple[Plan, PrimalDual | None] = pickle.loads(out)
+        return result
 
     def close(self) -> None:
         """Stop now: a solve still running is abandoned (its worker killed)."""
@@ -222,10 +229,11 @@ def _worker_main(owner_pid: int) -> None:
     # to stderr instead.
     result = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
-    course, rider, conditions, settings, guess, start = pickle.loads(sys.stdin.buffer.read())
+    course, rider, conditions, settings, guess, start, warm = pickle.loads(
+        sys.stdin.buffer.read())
     free = free_states(start, start_speed(rider, conditions, settings))
-    plan = solve_plan(course, rider, conditions, settings, model="3d", guess=guess, start=start,
-                      free_start=free)
+    solved = solve_plan_point(course, rider, conditions, settings, model="3d", guess=guess,
+                              start=start, free_start=free, warm=warm)
     with result:
-        result.write(pickle.dumps(plan))
+        result.write(pickle.dumps(solved))
 

@@ -112,6 +112,7 @@ class PlanInForce:
             log.warning("engine: re-solve of the course from s=%.0f m ended %s: the plan "
                         "in force stays", plan.s_m[0], plan.solver_status)
             self._stats["course_replan_failures"] += 1
+            self._stats[f"course_replan_failed_{plan.solver_status}"] += 1  # which way
             return False
         self.plan = plan
         self.version += 1

@@ -16,6 +16,7 @@ free (or the rider's state at a `Start`). Launch: the start speed is raised from
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -36,7 +37,7 @@ from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.guess import LAUNCH_GRIP, PLAN_ARRAYS, initial_guess, plan_guess
 from itt_planner.ocp.mesh import road_data
 from itt_planner.ocp.plan import Plan
-from itt_planner.ocp.solver import PlanStatus
+from itt_planner.ocp.solver import PlanStatus, SolveResult
 from itt_planner.ocp.transcription import Transcription, transcribe
 
 #: Interval length (m) above which the RK4 integrator takes several substeps.
@@ -143,6 +144,54 @@ def course_nlp(course: Course, rider: Rider, conditions: Conditions, settings: O
     lbw, ubw = bounds.decision(tr.layout)
     return CourseNlp(tr, nodes, tr.params(road_data(course, nodes), par), lbw, ubw,
                      np.clip(x_guess, lbx, ubx), u_guess)
+
+
+@dataclass(frozen=True, eq=False)
+class PrimalDual:
+    """A converged run's primal-dual point on its mesh: what a re-solve of the rest of
+    the course starts from, on the same mesh cut at the rider (`cut_nodes`, `cut_point`).
+
+    Why: a full-course plan is the optimum of the rest of the course from any of its own
+    states (Bellman), so a rider a little off it is a small perturbation of that
+    optimum; from the primal point alone IPOPT spent 40-120 iterations finding the
+    active arcs (C11 on the inside edges, C15, C16, W' = 0) again (bench/RESULTS.md,
+    2026-12-01, issue 14 re-solves), as the capped 3D runs did before they resumed with
+    their multipliers (H5: 4-73 iterations).
+    """
+
+    nodes: np.ndarray
+    w: np.ndarray
+    lam_x: np.ndarray
+    lam_g: np.ndarray
+
+
+def cut_nodes(nodes: np.ndarray, s0_m: float, min_first_m: float) -> tuple[np.ndarray, int]:
+    """`nodes` from `s0_m` on: `s0_m`, then the nodes more than `min_first_m` beyond
+    it; and the index of the old interval the new first one lies in (new node or
+    interval `i` is old `i + k`)."""
+    j = int(np.searchsorted(nodes, s0_m + min_first_m, side="right"))
+    return np.concatenate([[s0_m], nodes[j:]]), max(j - 1, 0)
+
+
+def cut_point(tr: Transcription, point: PrimalDual, k: int, x0: np.ndarray
+              ) -> SolveResult:
+    """`point` cut at old node `k` for the NLP `tr` (one node per old node from `k` on,
+    node 0 at `x0`), as a resumable run (`SolveResult` with its multipliers)."""
+    lay = tr.layout
+    old = dataclasses.replace(lay, n_intervals=len(point.nodes) - 1)
+
+    def vector(v: np.ndarray) -> np.ndarray:
+        x, u, _ = old.split(v)
+        return lay.join(x[:, k:], u[:, k:])
+
+    w = vector(point.w)
+    w[: lay.nx] = x0
+    g = point.lam_g
+    gaps = g[: old.n_gap].reshape(old.n_intervals, old.nx)[k:]
+    path = g[old.n_gap: old.n_gap + old.n_path * old.n_nodes].reshape(old.n_nodes, old.n_path)
+    lam_g = np.concatenate([gaps.ravel(), path[k:].ravel(), g[old.accel_rows][k:]])
+    return SolveResult(w, vector(point.lam_x), lam_g, float("nan"), PlanStatus.CONVERGED,
+                       "cut", 0, 0.0)
 
 
 def to_plan(tr: Transcription, w: np.ndarray, p: np.ndarray, lam_g: np.ndarray,

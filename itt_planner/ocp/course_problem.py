@@ -71,8 +71,11 @@ from itt_planner.model.rider import Rider
 from itt_planner.model.wprime import WPrimeModel
 from itt_planner.ocp.course_nlp import (
     CourseNlp,
+    PrimalDual,
     check_inputs,
     course_nlp,
+    cut_nodes,
+    cut_point,
     mesh_substeps,
     start_speed,
     to_plan,
@@ -104,6 +107,9 @@ _RETRY_BOUND_PUSH = 1e-4
 _FIRST_SHARE = 0.6
 #: Share of the budget left that a capped 3D run may use to resume (module docstring).
 _RESUME_SHARE = 0.8
+#: Share of the budget of the first run from a previous plan's primal-dual point
+#: (`solve_plan(warm=)`): the restarts keep enough for a start from its primal point.
+_WARM_SHARE = 0.3
 #: IPOPT's acceptable tolerance of the relaxed restart (module docstring).
 _RELAXED_TOL = 1e-4
 #: Mesh refinements after a failed verification (module docstring).
@@ -113,12 +119,16 @@ _REFINE_ROUNDS = 2
 def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions(),
                settings: OcpSettings = OcpSettings(), *, model: str = "3d",
                guess: Plan | None = None, start: Start | None = None,
-               free_start: Sequence[str] = ()) -> Plan:
+               free_start: Sequence[str] = (), warm: PrimalDual | None = None) -> Plan:
     """Solve the minimum-time OCP over the whole course, verify it, return the `Plan`.
 
     `start`: solve the rest of the course from a rider's state instead (the pacing
     engine's re-plan after the rider left the plan); the end conditions stay.
     `free_start`: states of `start` left to the solver (`course_nlp.course_nlp`).
+    `warm`: the primal-dual point of `guess` (`solve_plan_point`); with a `start`, the
+    first run resumes from it on its own mesh cut at the start (`course_nlp.PrimalDual`)
+    with `_WARM_SHARE` of the budget, unless the start needs a finer mesh there (a
+    rider much slower than the plan); then, or if it fails, the restarts as usual.
 
     `guess`: start IPOPT from this plan (any mesh, either model; `plan_guess`) instead
     of the default guess; the boundary conditions stay those of `rider`/`conditions`.
@@ -138,6 +148,17 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
         SolveError: unusable input (status "invalid_input"), e.g. a road narrower than the
             bike, or an unknown model name.
     """
+    return solve_plan_point(course, rider, conditions, settings, model=model, guess=guess,
+                            start=start, free_start=free_start, warm=warm)[0]
+
+
+def solve_plan_point(course: Course, rider: Rider, conditions: Conditions = Conditions(),
+                     settings: OcpSettings = OcpSettings(), *, model: str = "3d",
+                     guess: Plan | None = None, start: Start | None = None,
+                     free_start: Sequence[str] = (), warm: PrimalDual | None = None
+                     ) -> tuple[Plan, PrimalDual | None]:
+    """`solve_plan`, and the primal-dual point of the plan if it converged (for a warm
+    re-solve of the rest of the course from it)."""
     if model not in ("3d", "1d"):
         raise SolveError(f"unknown model {model!r}: choose '3d' or '1d'", status="invalid_input")
     check_inputs(course, settings)
@@ -159,10 +180,20 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
         # after the verification; the 1D model (no roll mode) gains from the fine launch:
         # 24 instead of 98 iterations on the 3.9 km climb of bench_convergence.
         cap = np.maximum(cap, settings.h_min_m)
-    nodes = solve.mesh(cap)
+    nodes, resume = solve.mesh(cap), None
+    if warm is not None and start is not None:
+        cut, k = cut_nodes(warm.nodes, start_m, 0.5 * settings.h_min_m)
+        # The plan's mesh, unless the start needs it finer (a slow rider's launch).
+        if np.all(np.diff(cut) <= np.interp(cut[:-1], course.s_m, cap) + 1e-6):
+            nodes, resume = cut, k
     prob = solve.nlp(nodes, guess)
     t_build = time.perf_counter() - t_start
-    prob, res = solve.first(prob, cap)
+    res = None
+    if resume is not None and warm is not None:
+        point = cut_point(prob.tr, warm, resume, prob.w_guess[: prob.tr.layout.nx])
+        res = solve.budget.run("warm", prob, point.w, share=_WARM_SHARE, resume=point)
+    if res is None or not res.converged:
+        prob, res = solve.first(prob, cap)
     plan = solve.finish(prob, res)
     plan = solve.refine(plan, prob, cap)
     if plan.status != PlanStatus.CONVERGED.value:
@@ -175,7 +206,8 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     if guess is not None:
         meta["guess"] = {"model": guess.model, "n_nodes": guess.n_nodes,
                          "finish_time_s": guess.finish_time_s}
-    return dataclasses.replace(plan, solve_time_s=time.perf_counter() - t_start, meta=meta)
+    return (dataclasses.replace(plan, solve_time_s=time.perf_counter() - t_start, meta=meta),
+            solve.point if plan.status == PlanStatus.CONVERGED.value else None)
 
 
 @dataclass
@@ -237,6 +269,8 @@ class _CourseSolve:
     free_start: tuple[str, ...]
     v0: float
     budget: _Budget
+    #: The primal-dual point of the last plan `finish` made.
+    point: PrimalDual | None = None
 
     @property
     def start_m(self) -> float:
@@ -344,4 +378,6 @@ class _CourseSolve:
                             check.worst_s_m)
         meta["verification"] = None if check is None else check.as_dict()
         meta["success"] = status is PlanStatus.CONVERGED
+        self.point = None if res.lam_x is None or res.lam_g is None else PrimalDual(
+            prob.nodes, res.w, res.lam_x, res.lam_g)
         return dataclasses.replace(plan, solver_status=raw, status=status.value, meta=meta)

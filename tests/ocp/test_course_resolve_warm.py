@@ -1,0 +1,82 @@
+"""A re-solve of the rest of the course from a previous plan's primal-dual point
+(`solve_plan(warm=)`): on that plan's mesh cut at the start, converged and verified, and
+back to the usual restarts where the start needs a finer mesh (issue 14: on the Zwift
+Bologna ride such re-solves took 8-10 iterations instead of 46-116 from the primal point)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from support.courses import hairpin
+
+from itt_planner.model.rider import PRESETS
+from itt_planner.ocp.course_nlp import PrimalDual
+from itt_planner.ocp.course_problem import solve_plan_point
+from itt_planner.ocp.course_settings import Start
+from itt_planner.ocp.plan import Plan
+from itt_planner.ocp.solver import PlanStatus
+
+COURSE = hairpin(straight_m=120.0)
+RIDER = PRESETS["paper"]
+FREE = ("phi", "phi_dot", "delta_n")
+
+
+@pytest.fixture(scope="module")
+def solved() -> tuple[Plan, PrimalDual]:
+    plan, point = solve_plan_point(COURSE, RIDER, model="3d")
+    assert plan.converged, plan.meta["attempts"]
+    assert point is not None and len(point.nodes) == plan.n_nodes
+    return plan, point
+
+
+def plan_state(plan: Plan, k: int, **change: float) -> Start:
+    names = {"n": "n_m", "alpha": "alpha_rad", "phi": "phi_rad", "phi_dot": "phi_dot_radps",
+             "v": "v_mps", "w_n": "w_n", "delta_n": "delta_n", "e_n": "e_n"}
+    state = {name: float(getattr(plan, array)[k]) for name, array in names.items()}
+    return Start(s_m=float(plan.s_m[k]), state=state | change)
+
+
+def test_from_the_plans_own_state_it_is_the_plan(solved: tuple[Plan, PrimalDual]) -> None:
+    """Bellman: from the plan's own state at one of its nodes, the rest of the plan is
+    the optimum (the lean, roll rate and steering left free can only make it faster);
+    the warm run converges on the plan's own nodes, to the plan's rest."""
+    plan, point = solved
+    k = plan.n_nodes // 3
+    rest = solve_plan_point(COURSE, RIDER, model="3d", guess=plan, start=plan_state(plan, k),
+                            free_start=FREE, warm=point)[0]
+    assert rest.status == PlanStatus.CONVERGED, rest.meta["attempts"]
+    assert rest.meta["attempts"][0]["strategy"] == "warm"
+    np.testing.assert_allclose(rest.s_m, plan.s_m[k:])
+    rest_s = plan.finish_time_s - plan.t_s[k]
+    assert rest_s - 0.01 * rest_s < rest.finish_time_s < rest_s + 0.01
+    np.testing.assert_allclose(rest.v_mps, plan.v_mps[k:], atol=0.3)
+
+
+def test_off_the_plan_warm_and_verified(solved: tuple[Plan, PrimalDual]) -> None:
+    """10 % slower and 2 kJ short before the hairpin: a converged, verified plan from the
+    warm start that starts at the rider's speed and W'; the next re-solve can start from
+    its point."""
+    plan, point = solved
+    k = int(np.searchsorted(plan.s_m, 60.0))
+    start = plan_state(plan, k, v=0.9 * float(plan.v_mps[k]),
+                       e_n=float(plan.e_n[k]) - 2000.0 / RIDER.w_prime_j)
+    rest, again = solve_plan_point(COURSE, RIDER, model="3d", guess=plan, start=start,
+                                   free_start=FREE, warm=point)
+    assert rest.status == PlanStatus.CONVERGED, rest.meta["attempts"]
+    assert rest.meta["attempts"][0]["strategy"] == "warm"
+    assert rest.meta["verification"]["verified"]
+    assert rest.v_mps[0] == pytest.approx(start.state["v"], rel=1e-6)
+    assert rest.e_n[0] == pytest.approx(start.state["e_n"], rel=1e-6)
+    assert again is not None and len(again.nodes) == rest.n_nodes
+
+
+def test_a_slow_start_needs_its_own_mesh(solved: tuple[Plan, PrimalDual]) -> None:
+    """At 1 m/s the plan's intervals are too long for the launch (`mesh.speed_spacing_m`):
+    no warm run; the usual start from the plan converges."""
+    plan, point = solved
+    k = int(np.searchsorted(plan.s_m, 60.0))
+    start = plan_state(plan, k, v=1.0, phi=0.0, phi_dot=0.0)
+    rest = solve_plan_point(COURSE, RIDER, model="3d", guess=plan, start=start,
+                            free_start=("delta_n",), warm=point)[0]
+    assert rest.status == PlanStatus.CONVERGED, rest.meta["attempts"]
+    assert rest.meta["attempts"][0]["strategy"] == "guess"
