@@ -170,8 +170,9 @@ def forward_3d(course: Course, rider: Rider, ride: RideOnCourse,
         stalled += float(ride.s_m[i1] - ride.s_m[j - 1])
     if stalled > (1.0 - _MIN_REPLAYED) * to_replay:
         raise CalibrationError(f"3D replay: the virtual rider stalled or fell on {stalled:.0f} m "
-                               f"of the {to_replay:.0f} m it replayed (at walking pace its lean "
-                               "loop is unstable)")
+                               f"of the {to_replay:.0f} m it replayed (it stalls where the "
+                               "course climbs more than the ride's power carries it, and its "
+                               "lean loop is unstable at walking pace)")
     ds = np.diff(ride.s_m)
     summary: dict[str, float | int] = dict(inputs.summary(ride)) if inputs is not None else {}
     summary.update(replayed_m=round(to_replay - stalled, 1),
