@@ -90,7 +90,10 @@ def _human_validation(r: dict[str, Any]) -> str:
                                              f"finish {h['finish_error_pct']:+.2f} %, speed MAE "
                                              f"{h['mae_kmh']} km/h (floor {h['noise_floor_kmh']})")
             for h in r["holdout"])
-    lines = [f"{r['ride']} on {r['course']} ({r['covered_m'] / 1000:.1f} km), rider {r['rider']}:"]
+    values = ", ".join(f"{k} {v}" for k, v in r["rider_values"].items())
+    head = (f"{r['ride']} on {r['course']} ({r['covered_m'] / 1000:.1f} km), rider "
+            f"{r['rider']} ({values}):")
+    lines = [head]
     lines += [f"  physics {p['model']} ({p['conditions']}): finish {p['finish_s']} s vs "
               f"{p['ride_moving_s']} s ({p['finish_error_pct']:+.2f} %), speed MAE "
               f"{p['mae_kmh']} RMSE {p['rmse_kmh']} bias {p['bias_kmh']} km/h, "
