@@ -10,8 +10,11 @@ advice figures of `advice_stats`, the real-time factor and the load average (a s
 machine: times are comparable only within one run).
 
 Course re-solves of the rest of the course are off by default (`--course-replan-period
-0`): each waits for a full-course OCP in a worker process, which is not what this
-benchmark measures and held a replay for minutes on this ride.
+0`): each waits for a full-course OCP in a worker process (a deterministic replay waits
+for it), which held a replay for minutes on this ride. With `--course-replan-period 30`
+(the session's default) the JSON's `course_replans` says how many were asked for,
+adopted and failed (by solver status). `--plan` replays with a saved full-course plan
+(the cache key hashes the OCP's code, so a change there would solve it again).
 
 Usage: .venv/bin/python bench/bench_horizon_ride.py [--rider RIDER.yaml] (default:
        bench/bologna_rider.yaml) [--ride FILE.tcx] [--model 3d|1d] [--cache-dir DIR]
@@ -104,6 +107,13 @@ def main() -> None:
         "solve_time_p95_s": percentile(times, 0.95) if times else None,
         "realtime_factor": ride_s / wall if wall > 0 else None, "wall_s": wall,
         "load_average": os.getloadavg(), "counts": counts,
+        "course_replans": {
+            "asked": counts.get("course_replans_asked", 0),
+            "adopted": counts.get("course_replans_adopted", 0),
+            "failed": counts.get("course_replan_failures", 0),
+            "failed_by_status": {k.removeprefix("course_replan_failed_"): v
+                                 for k, v in counts.items()
+                                 if k.startswith("course_replan_failed_")}},
         "advice_stats": advice_stats(advice) if advice else {},
     }, default=str))
 

@@ -165,33 +165,53 @@ class PrimalDual:
     lam_g: np.ndarray
 
 
-def cut_nodes(nodes: np.ndarray, s0_m: float, min_first_m: float) -> tuple[np.ndarray, int]:
+def cut_nodes(nodes: np.ndarray, s0_m: float, min_first_m: float, grid_s_m: np.ndarray,
+              h_cap_m: np.ndarray) -> np.ndarray:
     """`nodes` from `s0_m` on: `s0_m`, then the nodes more than `min_first_m` beyond
-    it; and the index of the old interval the new first one lies in (new node or
-    interval `i` is old `i + k`)."""
-    j = int(np.searchsorted(nodes, s0_m + min_first_m, side="right"))
-    return np.concatenate([[s0_m], nodes[j:]]), max(j - 1, 0)
+    it, each interval longer than the spacing cap `h_cap_m` (on `grid_s_m`) where it
+    starts split into equal parts (a rider slower than the plan needs a finer launch:
+    `guess.speed_spacing_cap`)."""
+    cut = np.concatenate([[s0_m], nodes[np.searchsorted(nodes, s0_m + min_first_m,
+                                                        side="right"):]])
+    h_cap = np.interp(cut[:-1], grid_s_m, h_cap_m)
+    parts = np.maximum(np.ceil(np.diff(cut) / h_cap - 1e-9), 1).astype(int)
+    inner = [np.linspace(a, b, m, endpoint=False)[1:]
+             for a, b, m in zip(cut[:-1], cut[1:], parts, strict=True) if m > 1]
+    return np.sort(np.concatenate([cut, *inner]))
 
 
-def cut_point(tr: Transcription, point: PrimalDual, k: int, x0: np.ndarray
+def cut_point(tr: Transcription, point: PrimalDual, nodes: np.ndarray, x0: np.ndarray
               ) -> SolveResult:
-    """`point` cut at old node `k` for the NLP `tr` (one node per old node from `k` on,
-    node 0 at `x0`), as a resumable run (`SolveResult` with its multipliers)."""
+    """`point` moved onto `nodes` (`cut_nodes`: the old nodes from the start on, some
+    intervals split) for the NLP `tr`, node 0 at `x0`, as a resumable run (`SolveResult`
+    with its multipliers). States are interpolated in s; a new interval takes the
+    controls and the gap and acceleration multipliers of the old interval holding its
+    midpoint (the costate is continuous), a new node the bound and path multipliers of
+    the nearest old node: on the old nodes themselves the point is the old one."""
     lay = tr.layout
     old = dataclasses.replace(lay, n_intervals=len(point.nodes) - 1)
+    mid = 0.5 * (nodes[1:] + nodes[:-1])
+    held = np.clip(np.searchsorted(point.nodes, mid, side="right") - 1, 0, old.n_intervals - 1)
+    near = np.clip(np.searchsorted(point.nodes, nodes), 1, old.n_intervals)
+    near = np.where(np.abs(point.nodes[near - 1] - nodes) < np.abs(point.nodes[near] - nodes),
+                    near - 1, near)
 
-    def vector(v: np.ndarray) -> np.ndarray:
+    def vector(v: np.ndarray, interpolate: bool) -> np.ndarray:
         x, u, _ = old.split(v)
-        return lay.join(x[:, k:], u[:, k:])
+        xs = (np.array([np.interp(nodes, point.nodes, row) for row in x]) if interpolate
+              else x[:, near])
+        return lay.join(xs, u[:, held])
 
-    w = vector(point.w)
+    w = vector(point.w, True)
     w[: lay.nx] = x0
     g = point.lam_g
-    gaps = g[: old.n_gap].reshape(old.n_intervals, old.nx)[k:]
+    gaps = g[: old.n_gap].reshape(old.n_intervals, old.nx)[held]
     path = g[old.n_gap: old.n_gap + old.n_path * old.n_nodes].reshape(old.n_nodes, old.n_path)
-    lam_g = np.concatenate([gaps.ravel(), path[k:].ravel(), g[old.accel_rows][k:]])
-    return SolveResult(w, vector(point.lam_x), lam_g, float("nan"), PlanStatus.CONVERGED,
-                       "cut", 0, 0.0)
+    accel = g[old.accel_rows]
+    lam_g = np.concatenate([gaps.ravel(), path[near].ravel(),
+                            accel[held] if len(accel) else accel])
+    return SolveResult(w, vector(point.lam_x, False), lam_g, float("nan"),
+                       PlanStatus.CONVERGED, "cut", 0, 0.0)
 
 
 def to_plan(tr: Transcription, w: np.ndarray, p: np.ndarray, lam_g: np.ndarray,

@@ -19,6 +19,11 @@ Restart strategies (issue 14 item 2, issue 18 item 3), in this order, each only 
 previous attempt did not end converged and verified, all within the budget (the first
 start may use `_FIRST_SHARE` of it):
 
+- a re-solve of the rest of the course with the primal-dual point of the plan it
+  starts from (`solve_plan(warm=)`, `course_nlp.PrimalDual`): first a run resumed from
+  that point on that plan's mesh cut at the start; on the Zwift Bologna ride 8-22
+  iterations instead of 44-116 (bench/RESULTS.md, 2026-12-01, issue 14 re-solves);
+  if it does not converge, the strategies below on a mesh built for the start;
 - early failure (`solver.SolveResult.gave_up_early`): the same start with a smaller
   bound push (on short courses the 3D model ended in Restoration_Failed with IPOPT's
   default push and converged in 39-64 iterations with 1e-4);
@@ -126,9 +131,9 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     engine's re-plan after the rider left the plan); the end conditions stay.
     `free_start`: states of `start` left to the solver (`course_nlp.course_nlp`).
     `warm`: the primal-dual point of `guess` (`solve_plan_point`); with a `start`, the
-    first run resumes from it on its own mesh cut at the start (`course_nlp.PrimalDual`)
-    with `_WARM_SHARE` of the budget, unless the start needs a finer mesh there (a
-    rider much slower than the plan); then, or if it fails, the restarts as usual.
+    first run resumes from it on its own mesh cut at the start (`course_nlp.PrimalDual`;
+    intervals the start needs finer split) with `_WARM_SHARE` of the budget; if it does
+    not converge, the restarts as usual.
 
     `guess`: start IPOPT from this plan (any mesh, either model; `plan_guess`) instead
     of the default guess; the boundary conditions stay those of `rider`/`conditions`.
@@ -180,18 +185,22 @@ def solve_plan_point(course: Course, rider: Rider, conditions: Conditions = Cond
         # after the verification; the 1D model (no roll mode) gains from the fine launch:
         # 24 instead of 98 iterations on the 3.9 km climb of bench_convergence.
         cap = np.maximum(cap, settings.h_min_m)
-    nodes, resume = solve.mesh(cap), None
-    if warm is not None and start is not None:
-        cut, k = cut_nodes(warm.nodes, start_m, 0.5 * settings.h_min_m)
-        # The plan's mesh, unless the start needs it finer (a slow rider's launch).
-        if np.all(np.diff(cut) <= np.interp(cut[:-1], course.s_m, cap) + 1e-6):
-            nodes, resume = cut, k
+    warm = warm if start is not None else None
+    if warm is None:
+        nodes = solve.mesh(cap)
+    else:  # the plan's mesh, finer where the start needs it (a slow rider's launch)
+        nodes = cut_nodes(warm.nodes, start_m, 0.5 * settings.h_min_m, course.s_m, cap)
     prob = solve.nlp(nodes, guess)
     t_build = time.perf_counter() - t_start
     res = None
-    if resume is not None and warm is not None:
-        point = cut_point(prob.tr, warm, resume, prob.w_guess[: prob.tr.layout.nx])
+    if warm is not None:
+        point = cut_point(prob.tr, warm, nodes, prob.w_guess[: prob.tr.layout.nx])
         res = solve.budget.run("warm", prob, point.w, share=_WARM_SHARE, resume=point)
+    if res is not None and not res.converged:
+        # The restarts on a mesh of their own: on a split launch (a rider at 1 m/s before
+        # the hairpin test course's corner) they stopped at their caps, where from the
+        # mesh built for the start they converged.
+        prob = solve.nlp(solve.mesh(cap), guess)
     if res is None or not res.converged:
         prob, res = solve.first(prob, cap)
     plan = solve.finish(prob, res)

@@ -70,13 +70,30 @@ def test_off_the_plan_warm_and_verified(solved: tuple[Plan, PrimalDual]) -> None
     assert again is not None and len(again.nodes) == rest.n_nodes
 
 
-def test_a_slow_start_needs_its_own_mesh(solved: tuple[Plan, PrimalDual]) -> None:
-    """At 1 m/s the plan's intervals are too long for the launch (`mesh.speed_spacing_m`):
-    no warm run; the usual start from the plan converges."""
+def test_a_slow_start_splits_the_plans_intervals(solved: tuple[Plan, PrimalDual]) -> None:
+    """At 2 m/s where the plan rides 10 m/s, the plan's 4 m intervals are too long for
+    the launch (`mesh.speed_spacing_m`): the warm run's mesh splits them where the rider
+    is slow, and keeps the plan's own nodes; converged and verified."""
+    plan, point = solved
+    k = int(np.searchsorted(plan.s_m, 30.0))
+    start = plan_state(plan, k, v=2.0)
+    rest = solve_plan_point(COURSE, RIDER, model="3d", guess=plan, start=start,
+                            free_start=FREE, warm=point)[0]
+    assert rest.status == PlanStatus.CONVERGED, rest.meta["attempts"]
+    assert rest.meta["attempts"][0]["strategy"] == "warm"
+    assert rest.meta["verification"]["verified"]
+    assert np.diff(rest.s_m)[0] < np.diff(plan.s_m)[k]  # split at the launch
+    assert set(plan.s_m[k + 1:]) <= set(rest.s_m)  # the plan's own nodes stay
+
+
+def test_a_failed_warm_run_restarts_on_a_mesh_of_its_own(
+        solved: tuple[Plan, PrimalDual]) -> None:
+    """Standing (1 m/s, upright) 60 m before the hairpin: the warm run on the split plan
+    mesh stops at its share; the restarts on the mesh built for the start converge."""
     plan, point = solved
     k = int(np.searchsorted(plan.s_m, 60.0))
     start = plan_state(plan, k, v=1.0, phi=0.0, phi_dot=0.0)
     rest = solve_plan_point(COURSE, RIDER, model="3d", guess=plan, start=start,
                             free_start=("delta_n",), warm=point)[0]
     assert rest.status == PlanStatus.CONVERGED, rest.meta["attempts"]
-    assert rest.meta["attempts"][0]["strategy"] == "guess"
+    assert rest.meta["verification"]["verified"]
