@@ -67,13 +67,16 @@ def _assert_advice_covers_ride(out: Path, bag: Path, period_s: float) -> None:
 
 def test_make_demo_bag_replays_with_advice_for_the_whole_ride(tmp_path: Path) -> None:
     """The `make demo` bag (the rider's CP 5 % below the planner's belief), replanned
-    every 10 s of ride time to keep the suite quick: the plan is advised while the rider
-    keeps to it, then the engine sees the rider run dry, refits CP and replans with the
-    horizon until the rest of the course, re-solved for the refitted CP, is the plan
-    advised (`course_replan`, 15 s of ride time later)."""
+    every 10 s of ride time against the 1D plan to keep the suite quick (the 3D plan of
+    `make demo` is a minute's solve; the horizon and the course re-solves are 3D in
+    both): the plan is advised while the rider keeps to it, then the engine sees the
+    rider run dry, refits CP and replans with the horizon until the rest of the course,
+    re-solved for the refitted CP, is the plan advised (`course_replan`, 15 s of ride
+    time later)."""
     bag = BAGS / "typical_verona-like_cp-overestimated.mcap"
-    config = SessionConfig(course="verona-like", rider="typical", replan_period_s=10.0,
-                           plan_cache=str(tmp_path / "cache"), deterministic=True)
+    config = SessionConfig(course="verona-like", rider="typical", model="1d",
+                           replan_period_s=10.0, plan_cache=str(tmp_path / "cache"),
+                           deterministic=True)
     result = replay_ride(bag, config, output=tmp_path / "advice.mcap")
     assert not result.errors
     assert result.advice_out >= result.ride_duration_s / 10 - 2

@@ -1,7 +1,9 @@
 """The static report: HTML with embedded figures, PNG, and the `report` command.
 
 Plans use the synthetic course; rides replay the demo bag (replanned every 20 s of ride
-time against the 1D plan, solved into a temporary cache, to keep the module quick).
+time against the 1D plan, solved into a temporary cache, without course re-solves: each
+is a 3D solve of the rest of the course, and the report of adoptions is tested on a
+trace of its own; this keeps the module quick).
 """
 
 from __future__ import annotations
@@ -186,7 +188,8 @@ def replayed(tmp_path_factory: pytest.TempPathFactory) -> Replayed:
     tmp = tmp_path_factory.mktemp("ride")
     out, cache = tmp / "replayed.mcap", tmp / "cache"
     config = SessionConfig(course="verona-like", rider="typical", model="1d",
-                           replan_period_s=20.0, plan_cache=str(cache), deterministic=True)
+                           replan_period_s=20.0, course_replan_period_s=0.0,
+                           plan_cache=str(cache), deterministic=True)
     result = replay_ride(DEMO_BAG, config, output=out)
     assert result.errors == [] and result.advice_out > 50
     return out, cache, result.ride_duration_s
