@@ -48,12 +48,17 @@ start may use `_FIRST_SHARE` of it):
   (`_RELAXED_TOL`: 1e-4 in 5 consecutive iterations), which the verification then
   has to confirm;
 - converged but not verified (a speed the mesh does not resolve, e.g. a rider slowed
-  far below the guess): the mesh is refined where the plan is slow
-  (`mesh.speed_spacing_m` on the plan's own speeds and tyre forces), and re-solved (1D
-  from the default guess, not from the invalid plan, which rides on the artefact; 3D
-  from the plan), at most `_REFINE_ROUNDS` times; a 1D plan still invalid then gets the
-  whole mesh at half the spacing (at 20 m intervals the 1D plans of bologna and
-  rovereto-like came out invalid, 2026-12-01).
+  far below the guess, or the 3D launch: one 1 m RK4 step from 1 m/s gains ~0.7 m/s):
+  the mesh is refined where the plan is slow (`mesh.speed_spacing_m` on the plan's
+  speeds and tyre forces) and re-solved, at most `_REFINE_ROUNDS` times. 1D: a mesh
+  built for that cap, from the default guess, not from the invalid plan (it rides on
+  the artefact); still invalid: the whole mesh at half the spacing (at 20 m the 1D
+  plans of bologna and rovereto-like were invalid, 2026-12-01). 3D: the plan's nodes
+  with the slow intervals split (`course_nlp.cut_nodes`), resumed from the plan's
+  primal-dual point moved onto them (`cut_point`), from its primal point if that fails.
+  A mesh built afresh kept 2 of 348 nodes (test hairpin, 600 m straights), the plan
+  on it sat off the active arcs of C11/C15/C16: a rider limited to 4 m/s^2 ended
+  Infeasible_Problem_Detected after 419 iterations (split and resumed: 7; issue 18).
 
 Boundary conditions and launch: `course_nlp`.
 """
@@ -337,26 +342,29 @@ class _CourseSolve:
         return res
 
     def refine(self, plan: Plan, prob: CourseNlp, cap: np.ndarray) -> Plan:
-        """Converged but not verified: refine where slow, then (1D) halve the spacing."""
-        usable = self.budget.usable
+        """Converged but not verified: refine where slow (module docstring)."""
+        usable, run = self.budget.usable, self.budget.run
         for _ in range(_REFINE_ROUNDS):
             if plan.status != PlanStatus.INVALID.value or not usable():
                 break
             cap = np.minimum(cap, plan_spacing_cap(self.course, plan, self.rider,
                                                    self.conditions))
-            nodes = self.mesh(cap)
+            nodes = (self.mesh(cap) if self.model == "1d"
+                     else cut_nodes(prob.nodes, self.start_m, 0.0, self.course.s_m, cap))
             if len(nodes) <= len(prob.nodes) * 1.001:
                 break  # the plan's speeds ask for no finer mesh: the mismatch is not the step
-            # 1D: from the default guess (or the caller's), not from the invalid plan, which
-            # rides on the artefact the finer mesh removes (bologna at 20 m). 3D: from the
-            # plan, whose mismatch was the launch (the hairpin from the default guess on the
-            # refined mesh: Restoration_Failed after 340 iterations; from the plan: 10).
             prob = self.nlp(nodes, self.guess if self.model == "1d" else plan)
-            plan = self.finish(prob, self.budget.run("refined where slow", prob, prob.w_guess))
+            res = None
+            if self.model == "3d" and self.point is not None:  # the plan's point, resumed
+                point = cut_point(prob.tr, self.point, nodes, prob.w_guess[: prob.tr.layout.nx])
+                res = run("refined where slow, resumed", prob, point.w, share=0.5, resume=point)
+            if res is None or (not res.converged and usable()):
+                res = run("refined where slow", prob, prob.w_guess)
+            plan = self.finish(prob, res)
         if plan.status == PlanStatus.INVALID.value and self.model == "1d" and usable():
             # Still on an artefact: the whole mesh at half the spacing (bologna at 20 m).
             prob = self.nlp(self.mesh(cap, 0.5), self.guess)
-            plan = self.finish(prob, self.budget.run("finer mesh", prob, prob.w_guess))
+            plan = self.finish(prob, run("finer mesh", prob, prob.w_guess))
         return plan
 
     def finish(self, prob: CourseNlp, res: SolveResult) -> Plan:
