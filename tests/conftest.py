@@ -20,6 +20,21 @@ from itt_planner.course.track_files import file_sha256
 #: The hairpin course and its 3D plan (`course`, `plan`) for the closed-loop tests.
 pytest_plugins = ["support.hairpin_fixtures"]
 
+#: Modules with the longest tests (up to a minute or more each, much of it waiting on
+#: real-time playback or on re-solves in a worker process). Collected first, so that
+#: xdist starts them first and the short tests fill the other workers meanwhile; left in
+#: place, one of them started last ended the run a minute after the rest.
+LONG_MODULES = frozenset({
+    "tests/ros/test_ros_node.py", "tests/sim/test_demo_bags.py",
+    "tests/live/test_advice_belief.py", "tests/sweep/test_sweep.py",
+    "tests/live/test_engine.py", "tests/ros/test_ros_play_record.py",
+})
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """`LONG_MODULES` first, each module's tests in their own order (a stable sort)."""
+    items.sort(key=lambda item: item.nodeid.partition("::")[0] not in LONG_MODULES)
+
 
 @pytest.fixture(scope="session")
 def data_file() -> Callable[[str], Path]:
