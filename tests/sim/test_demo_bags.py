@@ -65,6 +65,8 @@ def _assert_advice_covers_ride(out: Path, bag: Path, period_s: float) -> None:
     assert max(b - a for a, b in itertools.pairwise(advice)) <= 2 * period_s
 
 
+@pytest.mark.slow  # 35 s (two re-solves of the rest of the course); `make test` runs
+# the engine's re-solve (tests/live/test_engine.py) and the replay (tests/session/) apart.
 def test_make_demo_bag_replays_with_advice_for_the_whole_ride(tmp_path: Path) -> None:
     """The `make demo` bag (the rider's CP 5 % below the planner's belief), replanned
     every 10 s of ride time against the 1D plan to keep the suite quick (the 3D plan of

@@ -1,7 +1,8 @@
 """Fixtures of the closed-loop tests: the hairpin test course and its 3D plan.
 
 Registered for every test by the root conftest (`pytest_plugins`); the plan
-is solved once per test run and cached in pytest's cache directory. It is solved for
+is solved once per test run (a file lock keeps the xdist workers from solving it twice)
+and cached in pytest's cache directory. It is solved for
 `PLAN_CONDITIONS`, the lateral grip the virtual rider uses (`sim.planning_conditions`),
 so that in `nominal` the planner's belief equals the simulated truth; planners built in
 the tests take the same conditions.
@@ -10,6 +11,7 @@ the tests take the same conditions.
 from __future__ import annotations
 
 import pytest
+from filelock import FileLock
 
 from itt_planner.course.geometry import Course
 from itt_planner.model.conditions import Conditions
@@ -31,5 +33,8 @@ def course() -> Course:
 
 @pytest.fixture(scope="module")
 def plan(course: Course, request: pytest.FixtureRequest) -> Plan:
-    return load_or_solve(course, RIDER, PLAN_CONDITIONS, OcpSettings(), "3d",
-                         cache_dir=request.config.cache.mkdir("itt_plans"))
+    cache = request.config.cache.mkdir("itt_plans")
+    # One solve per run: the other xdist workers wait for it, then load it.
+    with FileLock(cache / "hairpin.lock"):
+        return load_or_solve(course, RIDER, PLAN_CONDITIONS, OcpSettings(), "3d",
+                             cache_dir=cache)
