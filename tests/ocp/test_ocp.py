@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
-from support.courses import hairpin, straight
+from support.courses import climb_bend_descent, hairpin, straight
 from typer.testing import CliRunner, Result
 
 from itt_planner.cli import app
@@ -298,20 +298,9 @@ def test_non_uniform_mesh_matches_uniform_1m_on_verona(verona: Course,
 
 # ---- CLI: plan / compare-riders end to end ------------------------------------------------
 
-SHORT_COURSE = {
-    "name": "short", "width_left_m": 4.0, "width_right_m": 4.0,
-    "segments": [
-        # With a 250 m first straight two of the three riders need solve_plan's restart
-        # after Restoration_Failed (bench/RESULTS.md); 500 m converges at once.
-        {"type": "straight", "length_m": 500.0, "grade_pct": 2.0},
-        {"type": "clothoid", "length_m": 10.0, "radius_m": 14.0, "direction": "left",
-         "grade_pct": -3.0},
-        {"type": "arc", "angle_deg": 120.0, "radius_m": 14.0, "direction": "left",
-         "grade_pct": -3.0},
-        {"type": "clothoid", "length_m": 10.0, "grade_pct": -3.0},
-        {"type": "straight", "length_m": 250.0, "grade_pct": -3.0},
-    ],
-}
+# With a 250 m first straight two of the three riders need solve_plan's restart after
+# Restoration_Failed (bench/RESULTS.md); 500 m converges at once.
+SHORT_COURSE = climb_bend_descent("short", 500.0)
 PLAN_KEYS = {"finish_time_s", "mean_power_w", "w_prime_end_j", "max_lean_deg", "solve_time_s",
              "iterations", "n_nodes", "solver_status"}
 runner = CliRunner()

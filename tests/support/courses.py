@@ -23,13 +23,18 @@ def straight(length_m: float = 1500.0) -> Course:
     return Course.from_centerline("straight", x, 0 * x, 0 * x, origin=GeoOrigin(45, 11, 0))
 
 
-#: Course-builder spec, 1.2 km: a climb, a 14 m hairpin-like bend, a descent (3D solves
-#: ~1 s CPU each): the sweep tests' and bench's short course.
-SHORT = {"name": "short-1200m", "width_left_m": 4.0, "width_right_m": 4.0, "segments": [
-    {"type": "straight", "length_m": 900.0, "grade_pct": 2.0},
-    {"type": "clothoid", "length_m": 10.0, "radius_m": 14.0, "direction": "left",
-     "grade_pct": -3.0},
-    {"type": "arc", "angle_deg": 120.0, "radius_m": 14.0, "direction": "left",
-     "grade_pct": -3.0},
-    {"type": "clothoid", "length_m": 10.0, "grade_pct": -3.0},
-    {"type": "straight", "length_m": 250.0, "grade_pct": -3.0}]}
+def climb_bend_descent(name: str, climb_m: float) -> dict[str, object]:
+    """Course-builder spec: a 2 % climb of `climb_m`, a 14 m hairpin-like bend, 250 m of
+    -3 % descent (3D solves ~1 s CPU each)."""
+    return {"name": name, "width_left_m": 4.0, "width_right_m": 4.0, "segments": [
+        {"type": "straight", "length_m": climb_m, "grade_pct": 2.0},
+        {"type": "clothoid", "length_m": 10.0, "radius_m": 14.0, "direction": "left",
+         "grade_pct": -3.0},
+        {"type": "arc", "angle_deg": 120.0, "radius_m": 14.0, "direction": "left",
+         "grade_pct": -3.0},
+        {"type": "clothoid", "length_m": 10.0, "grade_pct": -3.0},
+        {"type": "straight", "length_m": 250.0, "grade_pct": -3.0}]}
+
+
+#: The sweep tests' and bench's short course, 1.2 km.
+SHORT = climb_bend_descent("short-1200m", 900.0)
