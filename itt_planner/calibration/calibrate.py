@@ -31,6 +31,8 @@ from itt_planner.course.track_files import Recording, read_recording
 from itt_planner.errors import CourseError
 from itt_planner.model.rider import PRESETS, Rider
 
+#: First line of a rider file `rider_yaml` writes (`rider_file` reads it back by it).
+YAML_HEADER = "# itt-planner calibrate: "
 
 @dataclass(frozen=True)
 class CalibrationOptions:
@@ -253,7 +255,7 @@ def rider_yaml(result: CalibrationResult) -> str:
              for src, w in zip(result.sources, day_winds, strict=False)]
     setups = [f"# CdA of setup {name}: {r.drag_area_m2:.4f} m^2 (--setup)"
               for name, r in result.setup_riders().items()]
-    lines = [f"# itt-planner calibrate: {', '.join(result.sources)}", *winds, *setups,
+    lines = [f"{YAML_HEADER}{', '.join(result.sources)}", *winds, *setups,
              *(f"# refused {k}: {v}" for k, v in result.refusals.items()),
              f"preset: {opts.preset}"]
     for name in fitted:

@@ -31,6 +31,10 @@ from itt_planner.course.geometry import Corner, Course
 from itt_planner.errors import IttError
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.plan import Plan
+from itt_planner.view.report_sections import ReportSection, section_html
+from itt_planner.view.report_sections import (
+    table_cell as table_cell,  # noqa: PLC0414  (re-exported: the sweep report uses it)
+)
 from itt_planner.view.ride_report import BeliefEvent, RideTrace, actual_finish_s, belief_events
 
 MPS_TO_KMH = 3.6
@@ -291,10 +295,12 @@ def png_bytes(fig: Figure, dpi: int) -> bytes:
 
 
 def render_html(plan: Plan, course: Course, rider: Rider | None = None,
-                settings: ReportSettings = ReportSettings(), ride: RideTrace | None = None) -> str:
+                settings: ReportSettings = ReportSettings(), ride: RideTrace | None = None,
+                sections: tuple[ReportSection, ...] = ()) -> str:
     """The report as one self-contained HTML page (figures embedded as base64 PNG).
 
-    With `ride`, the actual ride is drawn over the plan and the table compares them.
+    With `ride`, the actual ride is drawn over the plan and the table compares them;
+    `sections` follow the figures (the calibrated rider, the validation).
     """
     with mpl.rc_context({"figure.constrained_layout.use": True}):
         fig = Figure(figsize=(11, 8 if ride is None else 10))
@@ -314,8 +320,10 @@ def render_html(plan: Plan, course: Course, rider: Rider | None = None,
     title = html.escape(f"itt-planner {kind}: {course.name}")
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{title}</title>"
             "<style>body{font-family:sans-serif;max-width:1250px;margin:auto}"
-            "th{text-align:left;padding-right:2em}img{max-width:100%}</style></head><body>"
-            f"<h1>{title}</h1><table>{rows}</table>{figures}</body></html>")
+            "th{text-align:left;padding-right:2em}img{max-width:100%}"
+            "table.grid td{padding-right:1em}</style></head><body>"
+            f"<h1>{title}</h1><table>{rows}</table>{figures}"
+            f"{''.join(section_html(x) for x in sections)}</body></html>")
 
 
 def _draw_top(fig: Figure | SubFigure, plan: Plan, course: Course, rider: Rider | None,
@@ -324,16 +332,6 @@ def _draw_top(fig: Figure | SubFigure, plan: Plan, course: Course, rider: Rider 
         draw_overview(fig, plan, course, rider)
     else:
         draw_ride_overview(fig, ride, plan, course, rider)
-
-
-def table_cell(value: object) -> str:
-    """A table cell: counts by name as `name: n, ...`, a list as `a; b` (empty: none),
-    None as a dash."""
-    if isinstance(value, dict):
-        return ", ".join(f"{k}: {v}" for k, v in value.items())
-    if isinstance(value, list):
-        return "; ".join(str(v) for v in value) or "none"
-    return "-" if value is None else str(value)
 
 
 def render_png(plan: Plan, course: Course, rider: Rider | None = None,
@@ -354,9 +352,11 @@ def render_png(plan: Plan, course: Course, rider: Rider | None = None,
 
 
 def write_report(plan: Plan, course: Course, output: str | Path, rider: Rider | None = None,
-                 settings: ReportSettings = ReportSettings(), ride: RideTrace | None = None
-                 ) -> Path:
+                 settings: ReportSettings = ReportSettings(), ride: RideTrace | None = None,
+                 sections: tuple[ReportSection, ...] = ()) -> Path:
     """Write the report as HTML (`.html`/`.htm`) or PNG (`.png`), by the output's suffix.
+
+    `sections` go into the HTML only (the PNG is the overview and a corner).
 
     Raises:
         IttError: another suffix, the plan is not on this course, or the file cannot be written.
@@ -369,7 +369,7 @@ def write_report(plan: Plan, course: Course, output: str | Path, rider: Rider | 
     suffix = output.suffix.lower()
     try:
         if suffix in (".html", ".htm"):
-            output.write_text(render_html(plan, course, rider, settings, ride),
+            output.write_text(render_html(plan, course, rider, settings, ride, sections),
                               encoding="utf-8")
         elif suffix == ".png":
             output.write_bytes(render_png(plan, course, rider, settings, ride))
