@@ -35,8 +35,11 @@ lint: setup
 	$(BIN)/ruff check .
 	$(BIN)/python -m mypy
 
+# Whole test files go to the 2 workers, the longest first in the order tests/conftest.py
+# collects them (LONG_MODULES): a file's module fixtures are set up once, and the short
+# files fill in at the end.
 test: lint
-	$(BIN)/python -m pytest -n 2 -q
+	$(BIN)/python -m pytest -n 2 --dist loadfile --no-loadscope-reorder -q
 
 bench: setup
 	$(BIN)/python -m bench

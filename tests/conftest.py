@@ -20,16 +20,18 @@ from itt_planner.course.track_files import file_sha256
 #: The hairpin course and its 3D plan (`course`, `plan`) for the closed-loop tests.
 pytest_plugins = ["support.hairpin_fixtures"]
 
-#: Modules with the longest tests (up to a minute or more each, much of it waiting on
-#: real-time playback or on re-solves in a worker process), in the order to start them.
-#: Collected first, so that xdist starts them first and the short tests fill the other
-#: workers meanwhile; left in place, one of them started last ended the run a minute
-#: after the rest (390 -> 341 s on 2 workers). The ROS node's come first: they mostly
-#: wait, while the next ones solve the hairpin plan (`support.hairpin_fixtures`).
+#: The test files that take longest (each up to a few minutes on 2 cores, much of it
+#: waiting on real-time playback or on solves), longest first. `make test` hands whole
+#: files to the xdist workers in collection order (`--dist loadfile
+#: --no-loadscope-reorder`), so these are collected first: each worker starts a long one
+#: and the short files fill in at the end. One started last ended the run minutes after
+#: the rest. The ROS node's tests mostly wait, so the other worker solves meanwhile.
 LONG_MODULES = (
     "tests/ros/test_ros_node.py", "tests/live/test_advice_belief.py",
-    "tests/sweep/test_sweep.py", "tests/live/test_engine.py", "tests/sim/test_simulate.py",
-    "tests/ros/test_ros_play_record.py",
+    "tests/sweep/test_sweep.py", "tests/test_corpus.py", "tests/live/test_estimate.py",
+    "tests/view/test_report.py", "tests/ocp/test_ocp.py",
+    "tests/calibration/test_calibration.py", "tests/ros/test_ros_play_record.py",
+    "tests/ocp/test_horizon.py", "tests/live/test_course_replan.py",
 )
 
 
