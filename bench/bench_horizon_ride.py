@@ -13,7 +13,9 @@ Course re-solves of the rest of the course are off by default (`--course-replan-
 0`): each waits for a full-course OCP in a worker process (a deterministic replay waits
 for it), which held a replay for minutes on this ride. With `--course-replan-period 30`
 (the session's default) the JSON's `course_replans` says how many were asked for,
-adopted and failed (by solver status). `--plan` replays with a saved full-course plan
+adopted and failed (by solver status), and how many the engine held
+(`live.resolve_gate`: backed off while the rider leaves each new plan at once, skipped
+while the rider is stopped). `--plan` replays with a saved full-course plan
 (the cache key hashes the OCP's code, so a change there would solve it again).
 
 Usage: .venv/bin/python bench/bench_horizon_ride.py [--rider RIDER.yaml] (default:
@@ -111,6 +113,10 @@ def main() -> None:
             "asked": counts.get("course_replans_asked", 0),
             "adopted": counts.get("course_replans_adopted", 0),
             "failed": counts.get("course_replan_failures", 0),
+            # Held by `live.resolve_gate`: the rider left the last plans at once, or stopped.
+            "backed_off": counts.get("course_replans_backed_off", 0),
+            "skipped_stopped": counts.get("course_replans_skipped_stopped", 0),
+            "backoffs": counts.get("course_replan_backoffs", 0),
             "failed_by_status": {k.removeprefix("course_replan_failed_"): v
                                  for k, v in counts.items()
                                  if k.startswith("course_replan_failed_")}},

@@ -32,7 +32,7 @@ import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 from itt_planner.course.geometry import Course
 from itt_planner.errors import SolveError
@@ -60,6 +60,10 @@ class CourseReplanSettings:
         min_remaining_m: closer to the finish than this the horizon covers the rest
             (the default horizon's length).
         ocp: settings of the solve (the full-course plan's, with a shorter CPU cap).
+        backoff_within_s: a rider off a re-solved plan less than this after its
+            adoption is not following the plans: the least interval between requests
+            doubles (`resolve_gate`); a rider who keeps to one this long resets it.
+        backoff_max_s: the longest interval the back-off reaches.
     """
 
     period_s: float = 30.0
@@ -67,6 +71,10 @@ class CourseReplanSettings:
     min_remaining_m: float = 1000.0
     # A re-solve still running after two periods is stale: 60 s of CPU at most.
     ocp: OcpSettings = field(default_factory=lambda: OcpSettings(max_cpu_time_s=60.0))
+    # A period: the Bologna rider left each new plan 0-15 s after its adoption (15 s
+    # after the request); 8 periods: a rider who keeps to none is re-solved every 4 min.
+    backoff_within_s: float = 30.0
+    backoff_max_s: float = 240.0
 
 
 #: States of a re-solve's start the rider's estimate does not measure: the lean, its rate
@@ -126,7 +134,8 @@ def start_from(planner: HorizonPlanner, state: RiderState, s_m: float,
 
 
 class CourseReplanner:
-    """One re-solve of the rest of the course at a time, in a worker process.
+    """One re-solve of the rest of the course at a time, in a worker process kept for
+    the replanner's life (`_solve_in_worker`).
 
     Args:
         course, conditions: the road and what the planner assumes on it.
@@ -146,6 +155,8 @@ class CourseReplanner:
         #: starts from it (`solve_plan(warm=)`; the first plan, from the cache, has none).
         self._point: tuple[Plan, PrimalDual] | None = None
         self._last_request_s = -math.inf
+        #: Worker processes started so far (one per replanner unless one died).
+        self.workers_started = 0
 
     def request(self, stamp_s: float, rider: Rider, guess: Plan, start: Start) -> bool:
         """Start a re-solve from `start` for `rider` unless one is pending, the last was
@@ -166,14 +177,16 @@ class CourseReplanner:
         """The finished re-solve, once it is due (module docstring), else None.
 
         Raises:
-            Exception: whatever the solve raised; `SolveError` (status "worker_failed")
-                if the worker process died (the caller logs it and goes on).
+            SolveError: the solve raised in the worker (its `SolveError` status, else
+                "worker_exception", the error's type and text in the message), or the
+                worker process died ("worker_failed"; the next request starts another).
+                The caller logs it and goes on.
         """
         if self._pending is None:
             return None
         asked, future = self._pending
         if (not future.done() if not self.deterministic
-                else stamp_s - asked < self.settings.delay_s):
+                else stamp_s - asked < self.settings.delay_s - 1e-9):  # stamp rounding
             return None
         self._pending = None
         plan, point = future.result()
@@ -181,32 +194,55 @@ class CourseReplanner:
         return plan
 
     def _solve_in_worker(self, job: tuple[Any, ...]) -> tuple[Plan, PrimalDual | None]:
-        """`solve_plan_point` on `job` in a fresh Python process (`_worker_main`).
+        """`solve_plan_point` on `job` in the worker process (`_worker_main`), started
+        at the first re-solve and kept for the next ones.
 
         Why a process: IPOPT's linear solver MUMPS is not thread-safe (Ipopt >= 3.14
         serialises its calls across threads, which would stall the horizon's solves
         behind the long one), and a crashing solver must not take the live node down.
         Why not `multiprocessing`: its "spawn" start re-runs the caller's main script
         in the child (a script without a main guard ran its ride again), and "fork" in
-        a process with threads (ROS executors, the engine's inputs) can deadlock. The
-        job and the plan (with its primal-dual point) travel pickled over the worker's
-        stdin and stdout.
+        a process with threads (ROS executors, the engine's inputs) can deadlock. Jobs
+        and results travel as length-prefixed pickles over the worker's stdin and stdout.
+        Why one process for all re-solves: a fresh process per re-solve paid the Python
+        and CasADi imports and the model's symbolic build every time (~2-3 s of the
+        4-12 s a warm re-solve took on the Zwift Bologna ride; bench/RESULTS.md,
+        2026-12-02); a process kept keeps them, and the transcriptions of recent node
+        counts (`course_nlp`'s per-process cache).
         """
-        worker = subprocess.Popen([sys.executable, "-c", _WORKER, str(os.getpid())],
-                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE)
-        self._worker = worker
-        out, _ = worker.communicate(pickle.dumps(job))
-        if worker.returncode != 0:
-            msg = f"the course re-solve worker exited with code {worker.returncode}"
+        worker = self._worker
+        if worker is None or worker.poll() is not None:
+            worker = subprocess.Popen([sys.executable, "-c", _WORKER, str(os.getpid())],
+                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+            self._worker = worker
+            self.workers_started += 1
+        assert worker.stdin is not None
+        assert worker.stdout is not None
+        try:
+            _send(worker.stdin, job)
+            reply = _receive(worker.stdout)
+        except (OSError, EOFError):
+            reply = None
+        if reply is None:  # the worker died (or was killed by `close`)
+            worker.kill()
+            code = worker.wait()
+            msg = f"the course re-solve worker exited with code {code}"
             raise SolveError(msg, status="worker_failed")
-        result: tuple[Plan, PrimalDual | None] = pickle.loads(out)
+        if reply[0] == "error":  # the solve raised in the worker, which goes on
+            raise SolveError(reply[2], status=reply[1])
+        result: tuple[Plan, PrimalDual | None] = reply[1]
         return result
 
     def close(self) -> None:
-        """Stop now: a solve still running is abandoned (its worker killed)."""
+        """Stop now: a solve still running is abandoned (the worker killed)."""
         worker = self._worker
-        if worker is not None and worker.poll() is None:
-            worker.kill()
+        if worker is not None:
+            if worker.poll() is None:
+                worker.kill()
+            worker.wait()
+            for pipe in (worker.stdin, worker.stdout):
+                if pipe is not None:
+                    pipe.close()
         self._waiter.shutdown(wait=False, cancel_futures=True)
         self._pending = None
 
@@ -224,20 +260,43 @@ def _watch_owner(owner_pid: int) -> None:
     os._exit(1)
 
 
+def _send(pipe: IO[bytes], obj: object) -> None:
+    """One frame: the pickle's length (8 bytes, big-endian), then the pickle."""
+    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    pipe.write(len(data).to_bytes(8, "big") + data)
+    pipe.flush()
+
+
+def _receive(pipe: IO[bytes]) -> Any:
+    """The next frame's object, None at the end of the stream (the other side closed)."""
+    head = pipe.read(8)
+    if len(head) < 8:
+        return None
+    size = int.from_bytes(head, "big")
+    data = pipe.read(size)
+    if len(data) < size:
+        return None
+    return pickle.loads(data)
+
+
 def _worker_main(owner_pid: int) -> None:
-    """The worker process: a pickled job on stdin, the pickled plan on stdout. It
-    ignores SIGINT (Ctrl-C reaches the whole process group; the owner kills it)."""
+    """The worker process: pickled jobs on stdin, one reply per job on stdout (the plan
+    and its point, or the error a solve raised: the worker goes on), until stdin ends.
+    It ignores SIGINT (Ctrl-C reaches the whole process group; the owner kills it)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     threading.Thread(target=_watch_owner, args=(owner_pid,), daemon=True).start()
-    # The plan gets the stdout pipe to itself: anything the solver's C code prints goes
-    # to stderr instead.
-    result = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
+    # The replies get the stdout pipe to themselves: anything the solver's C code prints
+    # goes to stderr instead.
+    replies = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
-    course, rider, conditions, settings, guess, start, warm = pickle.loads(
-        sys.stdin.buffer.read())
-    free = free_states(start, start_speed(rider, conditions, settings))
-    solved = solve_plan_point(course, rider, conditions, settings, model="3d", guess=guess,
-                              start=start, free_start=free, warm=warm)
-    with result:
-        result.write(pickle.dumps(solved))
-
+    while (job := _receive(sys.stdin.buffer)) is not None:
+        course, rider, conditions, settings, guess, start, warm = job
+        try:
+            free = free_states(start, start_speed(rider, conditions, settings))
+            reply: tuple[Any, ...] = ("ok", solve_plan_point(
+                course, rider, conditions, settings, model="3d", guess=guess, start=start,
+                free_start=free, warm=warm))
+        except Exception as err:  # noqa: BLE001  (reported: the owner raises it from `take`)
+            status = err.status if isinstance(err, SolveError) else "worker_exception"
+            reply = ("error", status, f"{type(err).__name__}: {err}")
+        _send(replies, reply)

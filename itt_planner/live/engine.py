@@ -40,11 +40,13 @@ from itt_planner.live.estimate import EstimatorSettings, StateEstimator
 from itt_planner.live.health import EngineCounts, input_diagnostics, solver_diagnostic
 from itt_planner.live.horizon_step import HorizonStep
 from itt_planner.live.plan_in_force import PlanInForce
+from itt_planner.live.resolve_gate import ResolveGate
 from itt_planner.live.samples import Sample
 from itt_planner.live.wprime_balance import WPrimeBalance
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
+from itt_planner.ocp.course_nlp import start_speed
 from itt_planner.ocp.horizon_cut import Solution, advice_fields, finished_fields
 from itt_planner.ocp.horizon_settings import HorizonSettings
 from itt_planner.ocp.plan import Plan
@@ -145,6 +147,9 @@ class PacingEngine:
                                   conditions=planner.conditions,
                                   replan=settings.course_replan,
                                   deterministic=settings.deterministic, stats=self._stats)
+        #: When a re-solve may be asked for (back-off, stopped rider: `resolve_gate`).
+        self._gate = ResolveGate(settings.course_replan, start_speed(
+            rider, planner.conditions, settings.course_replan.ocp), self._stats)
         #: The horizon planner and its solves (`horizon_step`).
         self.horizon = HorizonStep(course, planner, max_solve_time_s=settings.max_solve_time_s,
                                    deterministic=settings.deterministic,
@@ -258,8 +263,10 @@ class PacingEngine:
             if self._last_target_w is not None and self._refit(stamp_s, state):
                 state = self._estimator.state(stamp_s) or state
                 self._planner_stale = True
+                self._gate.reset()
             if plans.take(stamp_s):
                 self._planner_stale = True
+                self._gate.adopted(stamp_s)
             cp = self._balance.cp_w
             on_plan = (plans.follows(state, cp)
                        and self.course.length_m - state.s_m > _FINISHED_M)
@@ -267,6 +274,7 @@ class PacingEngine:
             # the rider does not have. Then the rest of the course is re-solved too.
             left_plan = not on_plan and (self.settings.on_plan_band_j > 0
                                          or not plans.fits_cp(cp))
+            (self._gate.on_plan if on_plan else self._gate.off_plan)(stamp_s)
             if on_plan:
                 horizon.consecutive_failures = 0
                 good = horizon.from_plan(plans.plan, state, self.rider.w_prime_j)
@@ -278,8 +286,12 @@ class PacingEngine:
             if self._planner_stale:  # the inputs stay unlocked while it is rebuilt
                 self._replace_planner()
             start = horizon.on_line(state, plans.plan)
-            if left_plan:
+            if left_plan and self._gate.allow(stamp_s, state.speed_mps, state.s_m,
+                                              self.course.length_m - state.s_m):
+                asked = self._stats["course_replans_asked"]
                 plans.request(stamp_s, horizon.planner, start)
+                if self._stats["course_replans_asked"] > asked:
+                    self._gate.asked(stamp_s)
             if self.course.length_m - state.s_m <= _FINISHED_M:
                 return self._finished(stamp_s, state)
             good, fallback = horizon.solve(state, start, plans.plan, self.rider.w_prime_j)

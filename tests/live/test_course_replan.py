@@ -119,30 +119,49 @@ def test_request_rules(plan: Plan, planner: HorizonPlanner) -> None:
 
 
 def test_unconverged_resolve_is_reported(plan: Plan, planner: HorizonPlanner) -> None:
-    """A re-solve that runs out of budget comes back as a plan that says so."""
+    """A re-solve that runs out of budget comes back as a plan that says so; the next
+    re-solve runs in the same worker process (no new process and imports per re-solve)."""
     rp = CourseReplanner(COURSE, Conditions(), CourseReplanSettings(
         min_remaining_m=200.0, ocp=OcpSettings(max_iter=3)), deterministic=False)
     try:
         start = start_from(planner, off_plan_state(plan), S_OFF_M)
-        assert rp.request(0.0, RIDER, plan, start)
-        rest = _wait(rp)
-        assert rest.status != PlanStatus.CONVERGED and not rest.meta["success"]
-        assert rest.iterations <= 3
+        for stamp in (0.0, 100.0):
+            assert rp.request(stamp, RIDER, plan, start)
+            rest = _wait(rp)
+            assert rest.status != PlanStatus.CONVERGED and not rest.meta["success"]
+            assert rest.iterations <= 3
+        assert rp.workers_started == 1
     finally:
         rp.close()
 
 
-def test_failed_worker_is_reported(plan: Plan, planner: HorizonPlanner) -> None:
-    """A worker that dies (here: the solve raises on a road narrower than the bike) is a
-    `SolveError` with status "worker_failed", raised by `take` for the caller to log."""
+def test_failed_solve_and_dead_worker_are_reported(plan: Plan, planner: HorizonPlanner) -> None:
+    """A solve that raises in the worker (here: a road narrower than the bike) is raised
+    by `take` with its status, for the caller to log, and the worker goes on; a worker
+    that dies is a `SolveError` "worker_failed", and the next request starts another."""
     narrow = hairpin(straight_m=300.0, width_m=0.4)
     rp = CourseReplanner(narrow, Conditions(), CourseReplanSettings(min_remaining_m=200.0),
                          deterministic=False)
+    start = start_from(planner, off_plan_state(plan), S_OFF_M)
     try:
-        assert rp.request(0.0, RIDER, plan, start_from(planner, off_plan_state(plan), S_OFF_M))
+        assert rp.request(0.0, RIDER, plan, start)
+        with pytest.raises(SolveError) as err:
+            _wait(rp)
+        assert err.value.status == "invalid_input"
+        assert "narrower than the bike" in str(err.value)
+        worker = rp._worker
+        assert worker is not None
+        assert worker.poll() is None  # still there for the next re-solve
+        worker.kill()
+        assert rp.request(100.0, RIDER, plan, start)
         with pytest.raises(SolveError) as err:
             _wait(rp)
         assert err.value.status == "worker_failed"
+        assert rp.request(200.0, RIDER, plan, start)
+        with pytest.raises(SolveError) as err:
+            _wait(rp)
+        assert err.value.status == "invalid_input"
+        assert rp.workers_started == 2
     finally:
         rp.close()
 
