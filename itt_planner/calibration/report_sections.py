@@ -54,11 +54,22 @@ def validate_for_report(ride: Path, course: Course, rider: Rider, plan: Plan,
     return val
 
 
+def unexplained_text(p: dict[str, Any]) -> str:
+    """The power the model does not explain, as a phrase ('' without the ride's inputs)."""
+    inputs = p.get("ride_inputs") or {}
+    if "unexplained_sd_w" not in inputs:
+        return ""
+    return (f"; power unexplained {inputs['unexplained_mean_w']:+} W, spread "
+            f"{inputs['unexplained_sd_w']} W over {inputs['unexplained_windows']} "
+            "braking-free 500 m windows")
+
+
 def _physics_line(p: dict[str, Any]) -> str:
     return (f"finish {p['finish_s']} s vs {p['ride_moving_s']} s moving "
             f"({p['finish_error_pct']:+.2f} %); speed MAE {p['mae_kmh']}, RMSE {p['rmse_kmh']}, "
             f"bias {p['bias_kmh']:+} km/h (noise floor {p['noise_floor_kmh']}); "
-            f"{100 * p['share_within_2kmh']:.0f} % of the distance within +-2 km/h")
+            f"{100 * p['share_within_2kmh']:.0f} % of the distance within +-2 km/h"
+            + unexplained_text(p))
 
 
 def three_d_gain(physics: list[dict[str, Any]]) -> str | None:
@@ -116,7 +127,10 @@ def validation_section(val: Validation) -> ReportSection:
         "Validation against the ride", rows, tuple(tables), tuple(validation_figures(val)),
         note="Each model replays the ride's own power along the course (speed against the "
              "ride's 5 s smoothed speed; the noise floor is the raw GPS speed's MAE against "
-             "it); the plan row is the plan drawn above against the ride's moving time.")
+             "it); the power unexplained is what the ride got beyond the model at the ride's "
+             "speed and power (wind gusts, drafting, position, elevation): its spread is "
+             "what keeps the replay's speed off the ride's. The plan row is the plan drawn "
+             "above against the ride's moving time.")
 
 
 def calibration_summary(cal: CalibratedRiderFile, rider: Rider, plan: Plan | None

@@ -49,6 +49,8 @@ def _human_calibration(cal: dict[str, Any] | None) -> list[str]:
 def _human_validation(val: dict[str, Any] | None) -> list[str]:
     if val is None:
         return []
+    from itt_planner.calibration.report_sections import unexplained_text  # noqa: PLC0415
+
     if "not_run" in val:
         return [f"validation not run: {val['not_run']}"]
     lines = [(f"validation against {val['ride']} ({val['covered_m'] / 1000:.1f} km, day wind "
@@ -56,7 +58,7 @@ def _human_validation(val: dict[str, Any] | None) -> list[str]:
     lines += [f"  physics {p['model']} ({p['conditions']}): finish {p['finish_error_pct']:+.2f} %,"
               f" speed MAE {p['mae_kmh']} RMSE {p['rmse_kmh']} bias {p['bias_kmh']:+} km/h "
               f"(noise floor {p['noise_floor_kmh']}), {100 * p['share_within_2kmh']:.0f} % "
-              "within 2 km/h" for p in val["physics"]]
+              "within 2 km/h" + unexplained_text(p) for p in val["physics"]]
     if "physics_3d" in val:
         lines.append(f"  physics 3d not run: {val['physics_3d']}")
     if "three_d_vs_one_d" in val:

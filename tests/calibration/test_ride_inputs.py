@@ -7,6 +7,8 @@ where the ride did; without it, the replay is fast through the braking zone.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -110,3 +112,21 @@ def test_stop_restarts_from_the_ride_state(course: Course) -> None:
     assert launch.size and launch[0] == k + 1 and np.all(ride.v_mps[launch] < LAUNCH_MPS)
     assert run.finish_time_s == pytest.approx(ride.moving_time_s, rel=1e-3)
     assert run.ride_inputs is not None and run.ride_inputs["stops"] == 1
+
+
+def test_unexplained_power_is_what_the_model_lacks(course: Course) -> None:
+    """The model's own ride leaves no power unexplained; replayed by a rider with 20 % more
+    drag, the ride got the missing drag power (0.2 x 1/2 rho CdA v^3) from outside the
+    model, and the figure says so (over the braking-free 500 m windows)."""
+    ride = _truth_ride(course)
+    own = ride_inputs(build_1d(), course, RIDER, ride, Conditions()).summary(ride)
+    assert own["unexplained_windows"] >= 5
+    assert abs(own["unexplained_mean_w"]) < 0.5 and own["unexplained_sd_w"] < 0.5
+    draggy = dataclasses.replace(RIDER, drag_area_m2=1.2 * RIDER.drag_area_m2)
+    inputs = ride_inputs(build_1d(), course, draggy, ride, Conditions())
+    v = 0.5 * (ride.v_mps[1:] + ride.v_mps[:-1])
+    missing = 0.2 * 0.5 * Conditions().air_density_kgpm3 * RIDER.drag_area_m2 * v ** 3
+    used = np.isfinite(inputs.unexplained_w)
+    assert np.average(inputs.unexplained_w[used], weights=1 / v[used]) == pytest.approx(
+        np.average(missing[used], weights=1 / v[used]), rel=0.05)
+    assert inputs.summary(ride)["unexplained_mean_w"] > 10.0
