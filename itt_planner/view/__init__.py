@@ -7,6 +7,7 @@
     rerun_sink       where a recording goes (file, viewer, server, none)
     ride_report      a replayed ride read back from its MCAP log
     report           the static HTML/PNG report of a plan or a ride
+    report_sections  extra sections of the static report (calibrated rider, validation)
 """
 
 from itt_planner.view.report import ReportSettings, write_report
