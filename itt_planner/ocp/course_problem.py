@@ -15,50 +15,9 @@
 4. verify: every plan is replayed by an independent simulation (`verify.verify_plan`);
    a converged plan that fails it is `invalid` (`solver.PlanStatus`), never a success.
 
-Restart strategies (issue 14 item 2, issue 18 item 3), in this order, each only when the
-previous attempt did not end converged and verified, all within the budget (the first
-start may use `_FIRST_SHARE` of it):
-
-- a re-solve of the rest of the course with the primal-dual point of the plan it
-  starts from (`solve_plan(warm=)`, `course_nlp.PrimalDual`): first a run resumed from
-  that point on that plan's mesh cut at the start; on the Zwift Bologna ride 8-22
-  iterations instead of 44-116 (bench/RESULTS.md, 2026-12-01, issue 14 re-solves);
-  if it does not converge, the strategies below on a mesh built for the start;
-- early failure (`solver.SolveResult.gave_up_early`): the same start with a smaller
-  bound push (on short courses the 3D model ended in Restoration_Failed with IPOPT's
-  default push and converged in 39-64 iterations with 1e-4);
-- 1D: a cold start on a mesh of half the spacing (the 1D model on the 9 km hilly route
-  of bench_convergence with 20 m intervals stopped at 569 iterations; restarted on
-  10 m it converged in 65);
-- 3D stopped by its share of the budget: resume from the run's last primal-dual point
-  (multipliers passed back, small barrier, no push off the bounds: the solver's resume
-  option set, `full_course_solver(resume=True)`) with `_RESUME_SHARE` of what is left.
-  A capped 3D run is mostly still converging (it forms the active arcs of C15, C16,
-  W' >= 0 and the road edges a node or two per iteration); a restart from scratch
-  threw that away: the hairpin course (`sim.hairpin_course`) with the paper rider ran
-  365 iterations capped, 4 short of converging, then 190 from the 1D plan, capped again
-  (609 in all); resumed it converges in 365 + 4 (bench/RESULTS.md, 2026-12-01, H5:
-  the resume costs what one uninterrupted run would);
-- 3D that failed (not capped) without a given guess: warm start from the 1D plan of
-  the same course (the 1D model has no roll mode and converges in a fraction of the
-  time; its speed and power profile is most of the 3D solution away from corners).
-  Only as a restart: as the first start it did not pay on verona-like with the
-  issue-18 rider (448 iterations from the 1D plan against 301 cold, 2026-12-01);
-- still capped: continue from the last iterate with IPOPT's acceptable level relaxed
-  (`_RELAXED_TOL`: 1e-4 in 5 consecutive iterations), which the verification then
-  has to confirm;
-- converged but not verified (a speed the mesh does not resolve, e.g. a rider slowed
-  far below the guess, or the 3D launch: one 1 m RK4 step from 1 m/s gains ~0.7 m/s):
-  the mesh is refined where the plan is slow (`mesh.speed_spacing_m` on the plan's
-  speeds and tyre forces) and re-solved, at most `_REFINE_ROUNDS` times. 1D: a mesh
-  built for that cap, from the default guess, not from the invalid plan (it rides on
-  the artefact); still invalid: the whole mesh at half the spacing (at 20 m the 1D
-  plans of bologna and rovereto-like were invalid, 2026-12-01). 3D: the plan's nodes
-  with the slow intervals split (`course_nlp.cut_nodes`), resumed from the plan's
-  primal-dual point moved onto them (`cut_point`), from its primal point if that fails.
-  A mesh built afresh kept 2 of 348 nodes (test hairpin, 600 m straights), the plan
-  on it sat off the active arcs of C11/C15/C16: a rider limited to 4 m/s^2 ended
-  Infeasible_Problem_Detected after 419 iterations (split and resumed: 7; issue 18).
+Restart strategies (issue 14 item 2, issue 18 item 3), the budget their runs share and
+the verification of each plan: `course_restarts`. A re-solve of the rest of the course
+can start from the primal-dual point of the plan it leaves (`solve_plan(warm=)`).
 
 Boundary conditions and launch: `course_nlp`.
 """
@@ -69,8 +28,6 @@ import dataclasses
 import logging
 import time
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -78,52 +35,14 @@ from itt_planner.course.geometry import Course
 from itt_planner.errors import SolveError
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
-from itt_planner.model.wprime import WPrimeModel
-from itt_planner.ocp.course_nlp import (
-    CourseNlp,
-    PrimalDual,
-    check_inputs,
-    course_nlp,
-    cut_nodes,
-    cut_point,
-    mesh_substeps,
-    start_speed,
-    to_plan,
-)
+from itt_planner.ocp.course_nlp import PrimalDual, check_inputs, cut_nodes, start_speed
+from itt_planner.ocp.course_restarts import Budget, CourseSolve
 from itt_planner.ocp.course_settings import OcpSettings, Start
-from itt_planner.ocp.guess import plan_spacing_cap, speed_spacing_cap
-from itt_planner.ocp.mesh import build_mesh
+from itt_planner.ocp.guess import speed_spacing_cap
 from itt_planner.ocp.plan import Plan
-from itt_planner.ocp.solver import (
-    INVALID_RAW_STATUS,
-    PlanStatus,
-    SolveResult,
-    full_course_solver,
-)
-from itt_planner.ocp.verify import Verification, verify_plan
+from itt_planner.ocp.solver import PlanStatus
 
 log = logging.getLogger(__name__)
-
-#: IPOPT's bound_push = bound_frac (how far the initial point is moved inside its
-#: bounds): IPOPT's default 1e-2 first. 1e-4 took 116 instead of 75 iterations on
-#: verona-like 3D (and ended 0.08 % slower, in another local optimum), and 127 instead of
-#: 61 on rovereto-like 1D (34 instead of 43 on verona-like 1D).
-_BOUND_PUSH = 1e-2
-#: A solve that gave up early (`SolveResult.gave_up_early`) is restarted once with this
-#: push: on short courses (0.6-0.8 km, typical and climber riders) the 3D model ended in
-#: Restoration_Failed with the default push and converged in 39-64 iterations with it.
-_RETRY_BOUND_PUSH = 1e-4
-#: Share of the budget the first start may use (the rest is for the restarts).
-_FIRST_SHARE = 0.6
-#: Share of the budget left that a capped 3D run may use to resume (module docstring).
-_RESUME_SHARE = 0.8
-#: Share of the budget of the first run from a previous plan's primal-dual point
-#: (`solve_plan(warm=)`): the restarts keep enough for a start from its primal point.
-_WARM_SHARE = 0.3
-#: IPOPT's acceptable tolerance of the relaxed restart (module docstring).
-_RELAXED_TOL = 1e-4
-#: Mesh refinements after a failed verification (module docstring).
-_REFINE_ROUNDS = 2
 
 
 def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions(),
@@ -137,7 +56,8 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     `free_start`: states of `start` left to the solver (`course_nlp.course_nlp`).
     `warm`: the primal-dual point of `guess` (`solve_plan_point`); with a `start`, the
     first run resumes from it on its own mesh cut at the start (`course_nlp.PrimalDual`;
-    intervals the start needs finer split) with `_WARM_SHARE` of the budget; if it does
+    intervals the start needs finer split) with a share of the budget
+    (`course_restarts`); if it does
     not converge, the restarts as usual.
 
     `guess`: start IPOPT from this plan (any mesh, either model; `plan_guess`) instead
@@ -148,7 +68,7 @@ def solve_plan(course: Course, rider: Rider, conditions: Conditions = Conditions
     (16,800 nodes): cold, not converged in 400 iterations; from the non-uniform plan,
     converged in 687 iterations (642 s CPU).
 
-    The restart strategies of the module docstring share one budget
+    The restart strategies (`course_restarts`) share one budget
     (`OcpSettings.budget`). A solve that does not converge, or whose plan fails its
     verification, still returns a Plan: `Plan.status` says which (`solver.PlanStatus`),
     `meta["success"]` is true only for a converged and verified plan, `meta["attempts"]`
@@ -179,10 +99,12 @@ def solve_plan_point(course: Course, rider: Rider, conditions: Conditions = Cond
     v0 = start_speed(rider, conditions, settings)
     if start is not None:
         v0 = float(start.state.get("v", v0))
-    solve = _CourseSolve(course, rider, conditions, settings, model, guess, start,
-                         tuple(free_start), v0,
-                         _Budget(max_iter, seconds, cpu_start, settings.tol,
-                                 f"full-course {model} OCP on {course.name}"))
+    solve = CourseSolve(course, rider, conditions, settings, model, guess, start,
+                        tuple(free_start), v0,
+                        Budget(max_iter, seconds, cpu_start, settings.tol,
+                               f"full-course {model} OCP on {course.name}"),
+                        lambda st: solve_plan(course, rider, conditions, st, model="1d",
+                                              start=start, free_start=free_start))
     cap = speed_spacing_cap(course, rider, conditions, model, start_m, v0)
     if model == "3d":
         # 3D: a priori no finer than h_min_m. At 0.06 m launch intervals the hairpin took
@@ -197,17 +119,7 @@ def solve_plan_point(course: Course, rider: Rider, conditions: Conditions = Cond
         nodes = cut_nodes(warm.nodes, start_m, 0.5 * settings.h_min_m, course.s_m, cap)
     prob = solve.nlp(nodes, guess)
     t_build = time.perf_counter() - t_start
-    res = None
-    if warm is not None:
-        point = cut_point(prob.tr, warm, nodes, prob.w_guess[: prob.tr.layout.nx])
-        res = solve.budget.run("warm", prob, point.w, share=_WARM_SHARE, resume=point)
-    if res is not None and not res.converged:
-        # The restarts on a mesh of their own: on a split launch (a rider at 1 m/s before
-        # the hairpin test course's corner) they stopped at their caps, where from the
-        # mesh built for the start they converged.
-        prob = solve.nlp(solve.mesh(cap), guess)
-    if res is None or not res.converged:
-        prob, res = solve.first(prob, cap)
+    prob, res = solve.first(prob, cap) if warm is None else solve.warm(prob, warm, cap)
     plan = solve.finish(prob, res)
     plan = solve.refine(plan, prob, cap)
     if plan.status != PlanStatus.CONVERGED.value:
@@ -222,179 +134,3 @@ def solve_plan_point(course: Course, rider: Rider, conditions: Conditions = Cond
                          "finish_time_s": guess.finish_time_s}
     return (dataclasses.replace(plan, solve_time_s=time.perf_counter() - t_start, meta=meta),
             solve.point if plan.status == PlanStatus.CONVERGED.value else None)
-
-
-@dataclass
-class _Budget:
-    """The solver runs of one `solve_plan` call, sharing its iteration and CPU budget."""
-
-    max_iter: int
-    seconds: float
-    cpu_start: float
-    tol: float
-    label: str
-    attempts: list[dict[str, Any]] = field(default_factory=list)
-
-    def left(self) -> tuple[int, float]:
-        used = sum(a["iterations"] for a in self.attempts)
-        return self.max_iter - used, self.seconds - (time.process_time() - self.cpu_start)
-
-    def usable(self) -> bool:
-        """Enough left for another attempt."""
-        its, secs = self.left()
-        return its > 10 and secs > 1.0
-
-    def run(self, strategy: str, pr: CourseNlp, w0: np.ndarray, share: float = 1.0,
-            bound_push: float = _BOUND_PUSH, acceptable_tol: float | None = None,
-            resume: SolveResult | None = None) -> SolveResult:
-        """One solver run from `w0` with `share` of what is left of the budget; `resume`:
-        a previous run on `pr` to continue from its primal-dual point (its multipliers
-        too) instead of a fresh start."""
-        its, secs = self.left()
-        t0 = time.perf_counter()
-        solver = full_course_solver(pr.tr, max_iter=int(its * share),
-                                    max_cpu_time_s=secs * share, tol=self.tol,
-                                    bound_push=bound_push, acceptable_tol=acceptable_tol,
-                                    resume=resume is not None)
-        res = solver.solve(w0, pr.p, pr.lbw, pr.ubw,
-                           lam_x0=None if resume is None else resume.lam_x,
-                           lam_g0=None if resume is None else resume.lam_g)
-        self.attempts.append({"strategy": strategy, "status": res.raw_status,
-                              "iterations": res.iterations, "n_nodes": len(pr.nodes),
-                              "time_s": round(time.perf_counter() - t0, 3)})
-        if not res.converged:
-            log.info("%s, %s: %s after %d iterations", self.label, strategy, res.raw_status,
-                     res.iterations)
-        return res
-
-
-@dataclass
-class _CourseSolve:
-    """One `solve_plan` call: its inputs, and the restart strategies of the module
-    docstring in their order."""
-
-    course: Course
-    rider: Rider
-    conditions: Conditions
-    settings: OcpSettings
-    model: str
-    guess: Plan | None
-    start: Start | None
-    free_start: tuple[str, ...]
-    v0: float
-    budget: _Budget
-    #: The primal-dual point of the last plan `finish` made.
-    point: PrimalDual | None = None
-
-    @property
-    def start_m(self) -> float:
-        return 0.0 if self.start is None else self.start.s_m
-
-    def mesh(self, cap: np.ndarray, scale: float = 1.0) -> np.ndarray:
-        """The mesh with the spacing scaled by `scale` (0.5: half the spacing)."""
-        st = self.settings
-        h_max = st.h_max_m if self.model == "3d" else st.h_max_1d_m
-        uniform = None if st.uniform_m is None else st.uniform_m * scale
-        return build_mesh(self.course, st.h_min_m, h_max * scale, uniform,
-                          start_m=self.start_m, h_cap_m=cap)
-
-    def nlp(self, nodes: np.ndarray, guess: Plan | None) -> CourseNlp:
-        return course_nlp(self.course, self.rider, self.conditions, self.settings, self.model,
-                          nodes, self.v0, self.start, guess, self.free_start)
-
-    def first(self, prob: CourseNlp, cap: np.ndarray) -> tuple[CourseNlp, SolveResult]:
-        """The first start and the restarts before a verification (module docstring):
-        the NLP the result belongs to, and the result."""
-        run, usable = self.budget.run, self.budget.usable
-        cold = prob.w_guess
-        # The first start gets `_FIRST_SHARE` of the budget, so that a restart has some left.
-        res = run("guess" if self.guess is not None else "cold", prob, cold, share=_FIRST_SHARE)
-        if res.gave_up_early and usable():
-            res = run("smaller bound push", prob, cold, bound_push=_RETRY_BOUND_PUSH, share=0.5)
-        if res.status is PlanStatus.CAPPED and self.model == "3d" and usable():
-            # Capped 3D runs were mostly still converging: go on from where it stopped.
-            res = run("resume", prob, res.w, share=_RESUME_SHARE, resume=res)
-        if not res.converged and self.model == "1d" and usable():
-            prob = self.nlp(self.mesh(cap, 0.5), self.guess)
-            res = run("finer mesh", prob, prob.w_guess, share=0.7)
-        if (res.status is PlanStatus.FAILED and self.model == "3d" and self.guess is None
-                and usable()):
-            res = self._warm_from_1d(prob, res)
-        if res.status is PlanStatus.CAPPED and usable():
-            res = run("relaxed tolerance", prob, res.w, bound_push=_RETRY_BOUND_PUSH,
-                      acceptable_tol=_RELAXED_TOL)
-        return prob, res
-
-    def _warm_from_1d(self, prob: CourseNlp, res: SolveResult) -> SolveResult:
-        """Solve the 1D plan (a third of the CPU left at most) and start from it."""
-        _, secs = self.budget.left()
-        st, left_m = self.settings, self.course.length_m - self.start_m
-        base = solve_plan(self.course, self.rider, self.conditions, dataclasses.replace(
-            st, max_iter=None, max_cpu_time_s=min(secs / 3, st.budget("1d", left_m)[1])),
-            model="1d", start=self.start, free_start=self.free_start)
-        self.budget.attempts.append({
-            "strategy": "1d plan for a warm start", "status": base.solver_status,
-            "iterations": base.iterations, "n_nodes": base.n_nodes,
-            "time_s": round(base.solve_time_s, 3)})
-        if base.meta.get("success") and self.budget.usable():
-            warm = self.nlp(prob.nodes, base)
-            return self.budget.run("warm from 1d", warm, warm.w_guess)
-        return res
-
-    def refine(self, plan: Plan, prob: CourseNlp, cap: np.ndarray) -> Plan:
-        """Converged but not verified: refine where slow (module docstring)."""
-        usable, run = self.budget.usable, self.budget.run
-        for _ in range(_REFINE_ROUNDS):
-            if plan.status != PlanStatus.INVALID.value or not usable():
-                break
-            cap = np.minimum(cap, plan_spacing_cap(self.course, plan, self.rider,
-                                                   self.conditions))
-            nodes = (self.mesh(cap) if self.model == "1d"
-                     else cut_nodes(prob.nodes, self.start_m, 0.0, self.course.s_m, cap))
-            if len(nodes) <= len(prob.nodes) * 1.001:
-                break  # the plan's speeds ask for no finer mesh: the mismatch is not the step
-            prob = self.nlp(nodes, self.guess if self.model == "1d" else plan)
-            res = None
-            if self.model == "3d" and self.point is not None:  # the plan's point, resumed
-                point = cut_point(prob.tr, self.point, nodes, prob.w_guess[: prob.tr.layout.nx])
-                res = run("refined where slow, resumed", prob, point.w, share=0.5, resume=point)
-            if res is None or (not res.converged and usable()):
-                res = run("refined where slow", prob, prob.w_guess)
-            plan = self.finish(prob, res)
-        if plan.status == PlanStatus.INVALID.value and self.model == "1d" and usable():
-            # Still on an artefact: the whole mesh at half the spacing (bologna at 20 m).
-            prob = self.nlp(self.mesh(cap, 0.5), self.guess)
-            plan = self.finish(prob, run("finer mesh", prob, prob.w_guess))
-        return plan
-
-    def finish(self, prob: CourseNlp, res: SolveResult) -> Plan:
-        """The plan of one solver run, verified; its status and figures in `meta`."""
-        course, rider, conditions = self.course, self.rider, self.conditions
-        settings = self.settings
-        attempts = self.budget.attempts
-        status, raw = res.status, res.raw_status
-        meta = {"course": course.name, "course_sha256": course.source_sha256,
-                "rider": asdict(rider), "conditions": asdict(conditions),
-                "settings": {k: (v.value if isinstance(v, WPrimeModel) else v)
-                             for k, v in asdict(settings).items()},
-                "objective": res.objective, "ipopt_status": raw, "attempts": list(attempts)}
-        # A run that raised has no multipliers: the plan's costate is then 0.
-        lam_g = res.lam_g if res.lam_g is not None else np.zeros(len(prob.tr.lbg))
-        plan = to_plan(prob.tr, res.w, prob.p, lam_g, prob.nodes, rider, status=raw,
-                       iterations=sum(a["iterations"] for a in attempts), solve_time_s=0.0,
-                       meta=meta)
-        check: Verification | None = None
-        if settings.verify and np.all(np.isfinite(res.w)):
-            check = verify_plan(plan, course, rider, conditions, model=prob.tr.model,
-                                substeps=mesh_substeps(plan.model, prob.nodes),
-                                wprime_model=settings.wprime_model)
-            if status is PlanStatus.CONVERGED and not check.verified:
-                status, raw = PlanStatus.INVALID, INVALID_RAW_STATUS
-                log.warning("plan on %s is not verified: %s mismatch %.1fx its tolerance at "
-                            "s = %.0f m", course.name, check.worst, check.worst_ratio,
-                            check.worst_s_m)
-        meta["verification"] = None if check is None else check.as_dict()
-        meta["success"] = status is PlanStatus.CONVERGED
-        self.point = None if res.lam_x is None or res.lam_g is None else PrimalDual(
-            prob.nodes, res.w, res.lam_x, res.lam_g)
-        return dataclasses.replace(plan, solver_status=raw, status=status.value, meta=meta)
