@@ -35,7 +35,8 @@ log = logging.getLogger(__name__)
 PLAN_CODE_MODULES = (
     "itt_planner.model.dynamics", "itt_planner.model.params", "itt_planner.model.steady",
     "itt_planner.model.wprime", "itt_planner.model.rider", "itt_planner.model.conditions",
-    "itt_planner.ocp.transcription", "itt_planner.ocp.mesh", "itt_planner.ocp.bounds",
+    "itt_planner.ocp.transcription", "itt_planner.ocp.codegen", "itt_planner.ocp.mesh",
+    "itt_planner.ocp.bounds",
     "itt_planner.ocp.guess", "itt_planner.ocp.solver", "itt_planner.ocp.course_settings",
     "itt_planner.ocp.course_nlp", "itt_planner.ocp.course_problem",
     "itt_planner.ocp.course_restarts", "itt_planner.ocp.verify",
