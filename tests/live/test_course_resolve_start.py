@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 from support.courses import hairpin
 
 from itt_planner.live.course_replan import UNMEASURED_STATES, free_states, start_from
+from itt_planner.model.conditions import GRAVITY_MPS2
 from itt_planner.model.rider import PRESETS
 from itt_planner.model.state import RiderState
 from itt_planner.ocp.course_nlp import start_speed
@@ -87,5 +89,23 @@ def test_slow_rider_in_a_corner(plan: Plan, planner: HorizonPlanner) -> None:
     assert rest.v_mps[0] == pytest.approx(slow.speed_mps, rel=1e-6)
     assert rest.w_prime_j[0] == pytest.approx(slow.w_prime_j, rel=1e-6)
     assert rest.meta["start"]["free"] == list(UNMEASURED_STATES)
-    # The lean it starts with balances the rider's speed, not the plan's.
-    assert abs(rest.phi_rad[0]) < abs(float(plan.at("phi_rad", s)))
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "UNMEASURED_STATES frees the roll rate: the solver picks a roll state no rider is in "
+    "(leaning 1.2 rad out of the turn, rolling back at 3.6 rad/s; the old assertion "
+    "|phi0| < |plan phi| held on main by magnitude with the wrong sign, +0.68 rad). With "
+    "('phi', 'delta_n') free it starts at -0.61 rad (steady lean -0.44, plan -0.76). "
+    "Needs live.course_replan.UNMEASURED_STATES = ('phi', 'delta_n'); then drop this mark"))
+def test_slow_rider_leans_into_the_corner(plan: Plan, planner: HorizonPlanner) -> None:
+    """The slow rider of `test_slow_rider_in_a_corner`: the lean the re-solve starts
+    with is into the turn, no more than the plan's (which balances a faster rider) and
+    at least the steady lean of the rider's speed on the centre line (E5; the plan's
+    line is wider, so a little less would do: a tenth of margin)."""
+    s, slow = in_the_corner(plan, 0.7)
+    rest = resolve(plan, planner, s, slow)
+    assert rest.status == PlanStatus.CONVERGED, rest.meta["attempts"]
+    plan_lean = float(plan.at("phi_rad", s))
+    steady = -np.arctan(slow.speed_mps ** 2 * float(COURSE.at("kappa_per_m", s)) / GRAVITY_MPS2)
+    assert np.sign(rest.phi_rad[0]) == np.sign(plan_lean) == np.sign(steady)
+    assert 0.9 * abs(steady) < abs(rest.phi_rad[0]) < abs(plan_lean)

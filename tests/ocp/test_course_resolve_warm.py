@@ -18,7 +18,13 @@ from itt_planner.ocp.solver import PlanStatus
 
 COURSE = hairpin(straight_m=120.0)
 RIDER = PRESETS["paper"]
-FREE = ("phi", "phi_dot", "delta_n")
+#: The lean and the steering left to the solver (what a rider's estimate does not
+#: measure); the roll rate stays the plan's. Free, the roll rate is a free lunch: from
+#: the plan's own state in the hairpin the solver started the rider leaning 1.1 rad out
+#: of the turn, rolling back, and "beat" the plan's rest by 0.5 s of 11.3 s; before the
+#: hairpin it left the plan's optimum (a saddle once the roll rate is free) and took 76
+#: iterations, ending on another local optimum with some guesses (+0.08 s).
+FREE = ("phi", "delta_n")
 
 
 @pytest.fixture(scope="module")
@@ -38,18 +44,18 @@ def plan_state(plan: Plan, k: int, **change: float) -> Start:
 
 def test_from_the_plans_own_state_it_is_the_plan(solved: tuple[Plan, PrimalDual]) -> None:
     """Bellman: from the plan's own state at one of its nodes, the rest of the plan is
-    the optimum (the lean, roll rate and steering left free can only make it faster);
-    the warm run converges on the plan's own nodes, to the plan's rest."""
+    the optimum (the lean and steering free at the plan's values); the warm run converges
+    on the plan's own nodes, to the plan's rest, before the hairpin and in it."""
     plan, point = solved
-    k = plan.n_nodes // 3
-    rest = solve_plan_point(COURSE, RIDER, model="3d", guess=plan, start=plan_state(plan, k),
-                            free_start=FREE, warm=point)[0]
-    assert rest.status == PlanStatus.CONVERGED, rest.meta["attempts"]
-    assert rest.meta["attempts"][0]["strategy"] == "warm"
-    np.testing.assert_allclose(rest.s_m, plan.s_m[k:])
-    rest_s = plan.finish_time_s - plan.t_s[k]
-    assert rest_s - 0.01 * rest_s < rest.finish_time_s < rest_s + 0.01
-    np.testing.assert_allclose(rest.v_mps, plan.v_mps[k:], atol=0.3)
+    for k in (plan.n_nodes // 3, int(abs(plan.phi_rad).argmax())):
+        rest = solve_plan_point(COURSE, RIDER, model="3d", guess=plan,
+                                start=plan_state(plan, k), free_start=FREE, warm=point)[0]
+        assert rest.status == PlanStatus.CONVERGED, rest.meta["attempts"]
+        assert rest.meta["attempts"][0]["strategy"] == "warm"
+        np.testing.assert_allclose(rest.s_m, plan.s_m[k:])
+        rest_s = plan.finish_time_s - plan.t_s[k]
+        assert rest.finish_time_s == pytest.approx(rest_s, abs=0.01)
+        np.testing.assert_allclose(rest.v_mps, plan.v_mps[k:], atol=0.3)
 
 
 def test_off_the_plan_warm_and_verified(solved: tuple[Plan, PrimalDual]) -> None:
