@@ -12,10 +12,12 @@ from dataclasses import dataclass
 
 from itt_planner.live.advice import Diagnostic, Level
 
-#: Engine counters the solver diagnostic shows.
+#: Engine counters the solver diagnostic shows (the re-solves held back by
+#: `resolve_gate` too: a re-solve not run is reported like one that failed).
 _SOLVER_COUNTERS = ("solves", "failures", "overruns", "exceptions", "fallbacks",
                     "unconverged_solves", "course_replans_asked", "course_replans",
-                    "course_replan_failures")
+                    "course_replan_failures", "course_replans_backed_off",
+                    "course_replans_skipped_stopped", "course_replan_backoffs")
 
 
 @dataclass(frozen=True)

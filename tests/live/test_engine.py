@@ -146,6 +146,7 @@ def test_off_the_plan_the_rest_of_the_course_is_re_solved(course: Course, plan: 
         # new CP is asked 30 s after the first, not 60.
         _ride(engine, course, plan, t + 45, start=due + 1, extra_power_w=600.0)
         counters = engine.counters
+        held = {d.name: d for d in engine.diagnostics(float(t + 45))}["itt_planner/solver"]
     finally:
         engine.close()
     assert counters["course_replan_backoffs"] == 1
@@ -160,6 +161,8 @@ def test_off_the_plan_the_rest_of_the_course_is_re_solved(course: Course, plan: 
     np.testing.assert_allclose(adopted.horizon_power_w[1:],
                                new.at("power_w", adopted.horizon_s_m[1:]))
     assert solver.values["course_replans"] == "1"
+    # The back-off is on /diagnostics too, not only in the counters.
+    assert held.values["course_replan_backoffs"] == "1"
 
 
 def test_clocked_by_stamps_only(course: Course, plan: Plan) -> None:
