@@ -18,6 +18,12 @@ result at its first update after the solve is done. When it is taken up must not
 on the wall clock in a deterministic replay, nor in a simulation that runs many times
 faster than real time: a deterministic engine adopts it `delay_s` of STAMP time after
 the request (about a live solve's time), waiting for the worker then if it is late.
+
+Each re-solve starts warm from the primal-dual point of the plan it leaves when that
+point is known (`solve_plan(warm=)`): the point a re-solve returned with its plan, or
+for the first plan in force the point it was saved or cached with (`plan_point`).
+Without one (an older plan file, a 1D plan) the re-solve starts from the plan's primal
+point alone; which way each one started is counted (`last_warm`).
 """
 
 from __future__ import annotations
@@ -39,10 +45,11 @@ from itt_planner.errors import SolveError
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
-from itt_planner.ocp.course_nlp import PrimalDual, start_speed
+from itt_planner.ocp.course_nlp import PrimalDual, spatial_model, start_speed
 from itt_planner.ocp.course_problem import solve_plan_point
 from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.plan import Plan
+from itt_planner.ocp.transcription import Layout
 
 if TYPE_CHECKING:
     from itt_planner.ocp.horizon import HorizonPlanner
@@ -133,6 +140,25 @@ def start_from(planner: HorizonPlanner, state: RiderState, s_m: float,
                                  "phi_dot": float(plan.at("phi_dot_radps", s_m))})
 
 
+def plan_point(plan: Plan, settings: OcpSettings) -> tuple[PrimalDual | None, str]:
+    """The primal-dual point a 3D re-solve from `plan` can start from: the plan's own
+    (`plan.POINT_ARRAYS`) if it fits the re-solve's NLP on the plan's nodes (the worker
+    solves the 3D model: a 1D plan's point has another layout), else None. Returns the
+    point and, when there is none, why."""
+    if plan.point_w is None or plan.point_lam_x is None or plan.point_lam_g is None:
+        return None, "the plan carries no primal-dual point"
+    if plan.model != "3d":
+        return None, f"the plan's point is of the {plan.model} model, the re-solve is 3d"
+    spm = spatial_model("3d", settings.wprime_model)
+    # The full-course NLP's layout (`course_nlp`: hard path constraints, acceleration rows).
+    lay = Layout(spm.nx, spm.nu, 0, plan.n_nodes - 1, int(spm.path.size1_out(0)))
+    sizes = (len(plan.point_w), len(plan.point_lam_x), len(plan.point_lam_g))
+    if sizes != (lay.n_var, lay.n_var, lay.n_g):
+        return None, (f"the plan's point has sizes {sizes}, the NLP on its {plan.n_nodes} "
+                      f"nodes {(lay.n_var, lay.n_var, lay.n_g)}")
+    return PrimalDual(plan.s_m, plan.point_w, plan.point_lam_x, plan.point_lam_g), ""
+
+
 class CourseReplanner:
     """One re-solve of the rest of the course at a time, in a worker process kept for
     the replanner's life (`_solve_in_worker`).
@@ -141,19 +167,28 @@ class CourseReplanner:
         course, conditions: the road and what the planner assumes on it.
         settings: request period and solve settings.
         deterministic: adopt a result at a fixed stamp delay (module docstring).
+        plan: the first plan in force: a re-solve from it starts from its primal-dual
+            point if it carries one that fits (`plan_point`; why not: `cold_reason`).
     """
 
     def __init__(self, course: Course, conditions: Conditions, settings: CourseReplanSettings,
-                 deterministic: bool) -> None:
+                 deterministic: bool, plan: Plan | None = None) -> None:
         self.course, self.conditions, self.settings = course, conditions, settings
         self.deterministic = deterministic
         # One thread that waits on the worker process (it runs no solver itself).
         self._waiter = ThreadPoolExecutor(max_workers=1, thread_name_prefix="course_replan")
         self._worker: subprocess.Popen[bytes] | None = None
         self._pending: tuple[float, Future[tuple[Plan, PrimalDual | None]]] | None = None
-        #: The last plan returned and its primal-dual point: a re-solve from that plan
-        #: starts from it (`solve_plan(warm=)`; the first plan, from the cache, has none).
+        #: The last plan returned (or the first plan) and its primal-dual point: a
+        #: re-solve from that plan starts from it (`solve_plan(warm=)`).
         self._point: tuple[Plan, PrimalDual] | None = None
+        #: Why the first plan's re-solve starts without its point ("" if it has one).
+        self.cold_reason = ""
+        if plan is not None:
+            point, self.cold_reason = plan_point(plan, settings.ocp)
+            self._point = None if point is None else (plan, point)
+        #: Whether the last re-solve started was given a primal-dual point.
+        self.last_warm = False
         self._last_request_s = -math.inf
         #: Worker processes started so far (one per replanner unless one died).
         self.workers_started = 0
@@ -169,6 +204,7 @@ class CourseReplanner:
             return False
         self._last_request_s = stamp_s
         warm = self._point[1] if self._point is not None and self._point[0] is guess else None
+        self.last_warm = warm is not None
         job = (self.course, rider, self.conditions, st.ocp, guess, start, warm)
         self._pending = (stamp_s, self._waiter.submit(self._solve_in_worker, job))
         return True

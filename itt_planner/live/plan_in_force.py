@@ -13,7 +13,11 @@ the horizon replans every period until the balance is back within half the band 
 plan in force, and the rest of the course is re-solved from the rider's state with the
 full-course OCP in the background (`course_replan`); a converged re-solve becomes the
 plan in force (`version` + 1), advised as such while the rider keeps to it and the
-horizon's terminal treatment otherwise.
+horizon's terminal treatment otherwise. A re-solve starts warm from the primal-dual
+point of the plan in force when there is one (for the first plan, the point it was saved
+or cached with: `course_replan.plan_point`); the counters say which way each started
+(`course_replans_started_warm` / `_cold`) and how many warm runs converged at once
+(`course_replans_warm_converged`; the others went on to the restarts).
 
 Not thread-safe: the engine calls it with its locks held.
 """
@@ -31,6 +35,7 @@ from itt_planner.live.course_replan import CourseReplanner, CourseReplanSettings
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.state import RiderState
 from itt_planner.ocp.plan import Plan
+from itt_planner.ocp.solver import PlanStatus
 
 if TYPE_CHECKING:
     from itt_planner.ocp.horizon import HorizonPlanner
@@ -69,7 +74,10 @@ class PlanInForce:
         self.band_j = band_j
         self._stats = stats
         self._on_plan = band_j > 0
-        self._replanner = CourseReplanner(course, conditions, replan, deterministic)
+        self._replanner = CourseReplanner(course, conditions, replan, deterministic, plan=plan)
+        if replan.period_s > 0 and self._replanner.cold_reason:
+            log.info("engine: the first re-solve of the course will start from the plan's "
+                     "primal point only: %s", self._replanner.cold_reason)
 
     def fits_cp(self, cp_in_use_w: float) -> bool:
         """Whether the plan in force was solved for the CP in use, within `_CP_TOL`."""
@@ -94,6 +102,8 @@ class PlanInForce:
         start = start_from(planner, state, s0, self._replanner.settings.ocp)
         if self._replanner.request(stamp_s, planner.rider, self.plan, start):
             self._stats["course_replans_asked"] += 1
+            self._stats["course_replans_started_"
+                        + ("warm" if self._replanner.last_warm else "cold")] += 1
             log.info("engine: off the plan at s=%.0f m (W' %.0f J, CP %.0f W): re-solving the "
                      "rest of the course", s0, state.w_prime_j, planner.rider.critical_power_w)
 
@@ -108,6 +118,10 @@ class PlanInForce:
             return False
         if plan is None:
             return False
+        first = (plan.meta.get("attempts") or [{}])[0]
+        if (first.get("strategy") == "warm"
+                and PlanStatus.of(str(first.get("status"))) is PlanStatus.CONVERGED):
+            self._stats["course_replans_warm_converged"] += 1  # no restart needed
         if not plan.meta.get("success", False):
             log.warning("engine: re-solve of the course from s=%.0f m ended %s: the plan "
                         "in force stays", plan.s_m[0], plan.solver_status)

@@ -5,6 +5,10 @@ conditions, the OCP settings, the model, and the source code of the modules that
 plan (`PLAN_CODE_MODULES`: physics, transcription, mesh, bounds, solver, verification),
 so neither a changed input nor a physics change can hit a stale plan. Only converged and
 verified plans are stored. Writing goes through a temporary file and an atomic rename.
+
+A stored plan keeps the primal-dual point of its NLP (`plan.POINT_ARRAYS`, in the same
+file), so the first re-solve of the rest of the course from a cached
+plan starts warm like the later ones (`live.course_replan`).
 """
 
 from __future__ import annotations
@@ -15,15 +19,18 @@ import inspect
 import json
 import logging
 import os
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from functools import lru_cache
 from pathlib import Path
+
+import numpy as np
 
 from itt_planner.course.geometry import Course
 from itt_planner.errors import IttError
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
-from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.course_nlp import PrimalDual
+from itt_planner.ocp.course_problem import solve_plan_point
 from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.ocp.plan import PLAN_SUFFIX, Plan
 
@@ -68,6 +75,21 @@ def plan_key(course: Course, rider: Rider, conditions: Conditions, settings: Ocp
     return h.hexdigest()[:24]
 
 
+def with_point(plan: Plan, point: PrimalDual | None) -> Plan:
+    """`plan` keeping `point` (`plan.POINT_ARRAYS`) if it is the point of the plan's own
+    NLP (on the plan's nodes), else `plan` as it is."""
+    if point is None or not np.array_equal(point.nodes, plan.s_m):
+        return plan
+    return replace(plan, point_w=point.w, point_lam_x=point.lam_x, point_lam_g=point.lam_g)
+
+
+def solve_keeping_point(course: Course, rider: Rider, conditions: Conditions,
+                        settings: OcpSettings, model: str) -> Plan:
+    """`course_problem.solve_plan`, the plan keeping its primal-dual point if it
+    converged (`with_point`; what a plan saved for `--plan` should be solved with)."""
+    return with_point(*solve_plan_point(course, rider, conditions, settings, model=model))
+
+
 def load_or_solve(course: Course, rider: Rider, conditions: Conditions = Conditions(),
                   settings: OcpSettings = OcpSettings(), model: str = "3d",
                   cache_dir: Path = Path(".itt_cache")) -> Plan:
@@ -75,7 +97,8 @@ def load_or_solve(course: Course, rider: Rider, conditions: Conditions = Conditi
 
     Only converged and verified plans are stored (`Plan.converged`), so a capped,
     failed or invalid solve is retried next time; a cached file that is not converged
-    (written by other code) is ignored.
+    (written by other code) is ignored. A solved plan keeps its primal-dual point
+    (`solve_keeping_point`); a cached file from before that loads without it.
 
     Raises:
         SolveError: unusable input (see `course_problem.solve_plan`).
@@ -91,7 +114,7 @@ def load_or_solve(course: Course, rider: Rider, conditions: Conditions = Conditi
             if cached.converged:
                 return cached
             log.warning("ignoring cached plan %s: status %s", path, cached.status)
-    plan = solve_plan(course, rider, conditions, settings, model=model)
+    plan = solve_keeping_point(course, rider, conditions, settings, model)
     if plan.converged and plan.meta.get("success"):
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.name + f".{os.getpid()}.tmp")

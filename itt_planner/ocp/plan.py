@@ -3,6 +3,12 @@
 Arrays are over the arc-length grid `s_m` of the OCP nodes, in SI units. The 1D model
 (model.md section 6) fills the lateral arrays with zeros. Saved as one `.plan.npz` file
 (arrays + a JSON header with the solver figures and what the plan was computed for).
+
+A plan may carry the primal-dual point of the NLP it solves (`POINT_ARRAYS`, on its own
+nodes): a re-solve of the rest of the course from that plan then starts warm from it
+(`course_nlp.PrimalDual`, `live.course_replan.plan_point`). They are saved in the same
+file when present; a file without them (older ones, or a plan whose solve kept no point)
+loads with them None, and its first re-solve starts from the primal point alone.
 """
 
 from __future__ import annotations
@@ -25,6 +31,8 @@ PLAN_ARRAYS = (
     "e_n", "u_delta", "u_w", "power_w", "w_prime_j", "ax_mps2", "ay_mps2", "friction_use",
     "costate_v_s_per_mps",
 )
+#: Optional arrays of a plan (None when not kept): the primal-dual point of its NLP.
+POINT_ARRAYS = ("point_w", "point_lam_x", "point_lam_g")
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,6 +53,13 @@ class Plan:
         status: what the outcome means (`solver.PlanStatus` value: converged, capped,
             failed, invalid); only a `converged` plan is verified and fit for use.
             `meta["verification"]` holds the replay's figures (`verify.Verification`).
+        point_w, point_lam_x, point_lam_g: the primal-dual point of the NLP this plan
+            solves, on its nodes `s_m`: the decision vector (the NLP's layout), its bound
+            and its constraint multipliers; all None when not kept (or a file without
+            them). Why a plan keeps them: a re-solve of the rest of the course from the
+            plan resumes from them (`course_nlp.PrimalDual`); from the primal point
+            alone the first re-solve of the Zwift Bologna ride took 116 IPOPT
+            iterations, warm ones 6-43 (bench/RESULTS.md, 2026-12-02).
     """
 
     model: str
@@ -71,6 +86,9 @@ class Plan:
     solve_time_s: float
     meta: dict[str, Any] = field(default_factory=dict)
     status: str = "converged"
+    point_w: np.ndarray | None = None
+    point_lam_x: np.ndarray | None = None
+    point_lam_g: np.ndarray | None = None
 
     @property
     def converged(self) -> bool:
@@ -80,6 +98,11 @@ class Plan:
     @property
     def finish_time_s(self) -> float:
         return float(self.t_s[-1])
+
+    @property
+    def has_point(self) -> bool:
+        """Whether the plan keeps the primal-dual point of its NLP (`POINT_ARRAYS`)."""
+        return all(getattr(self, k) is not None for k in POINT_ARRAYS)
 
     @property
     def n_nodes(self) -> int:
@@ -95,14 +118,15 @@ class Plan:
         header = {"format": _FORMAT, "model": self.model, "solver_status": self.solver_status,
                   "status": self.status, "iterations": self.iterations,
                   "solve_time_s": self.solve_time_s, "meta": self.meta}
+        kept = POINT_ARRAYS if self.has_point else ()
+        arrays = {k: getattr(self, k) for k in (*PLAN_ARRAYS, *kept)}
         with path.open("wb") as fh:
-            np.savez_compressed(fh, header=np.array(json.dumps(header)),
-                                **{k: getattr(self, k) for k in PLAN_ARRAYS})
+            np.savez_compressed(fh, header=np.array(json.dumps(header)), **arrays)
         return path
 
     @classmethod
     def load(cls, path: str | Path) -> Plan:
-        """Read a plan written by `save`.
+        """Read a plan written by `save` (its `POINT_ARRAYS` if the file has them).
 
         Raises:
             IttError: not a plan file.
@@ -112,6 +136,8 @@ class Plan:
             with np.load(path, allow_pickle=False) as data:
                 header = json.loads(str(data["header"]))
                 arrays: dict[str, Any] = {k: np.array(data[k]) for k in PLAN_ARRAYS}
+                if all(k in data.files for k in POINT_ARRAYS):
+                    arrays |= {k: np.array(data[k]) for k in POINT_ARRAYS}
         except (OSError, ValueError, KeyError) as err:
             raise IttError(f"{path}: not an itt-planner plan file ({err})") from None
         if header.get("format") != _FORMAT:

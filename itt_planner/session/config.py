@@ -31,6 +31,9 @@ class SessionConfig:
         rider: rider preset name or YAML file.
         model: full-course plan model, "3d" or "1d".
         plan: a saved full-course plan (`Plan.save`); "" to take it from `plan_cache`.
+            A plan that keeps the primal-dual point of its NLP (the cache's do:
+            `ocp.cache.solve_keeping_point`) makes the first re-solve of the rest of the
+            course start warm (`course_replan.plan_point`); one without starts it cold.
         plan_cache: directory of cached full-course plans (solved there when missing).
         horizon_m: receding-horizon length (the planner's `HorizonSettings.horizon_m`).
         replan_period_s: stamp time between two advices.

@@ -1,6 +1,7 @@
 """Plan cache (`ocp.cache`): a hit returns the stored plan without solving; a change of
 the course, rider, conditions, settings, model or plan code misses; a stale or unusable
-file is ignored and replaced; only converged and verified plans are stored."""
+file is ignored and replaced; only converged and verified plans are stored; a stored plan
+keeps the primal-dual point of its own NLP, and a file without one still loads."""
 
 from __future__ import annotations
 
@@ -19,10 +20,11 @@ from itt_planner.course.geometry import Course
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import PRESETS, Rider
 from itt_planner.ocp import cache as plan_cache
-from itt_planner.ocp.cache import load_or_solve, plan_key
-from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.cache import load_or_solve, plan_key, with_point
+from itt_planner.ocp.course_nlp import PrimalDual
+from itt_planner.ocp.course_problem import solve_plan, solve_plan_point
 from itt_planner.ocp.course_settings import OcpSettings
-from itt_planner.ocp.plan import PLAN_ARRAYS, Plan
+from itt_planner.ocp.plan import PLAN_ARRAYS, POINT_ARRAYS, Plan
 
 COURSE = straight(600.0)
 RIDER = PRESETS["paper"]
@@ -42,11 +44,11 @@ def solver_calls(monkeypatch: pytest.MonkeyPatch, solved: Plan) -> list[tuple[An
     calls: list[tuple[Any, ...]] = []
 
     def fake(course: Course, rider: Rider, conditions: Conditions, settings: OcpSettings, *,
-             model: str) -> Plan:
+             model: str) -> tuple[Plan, None]:
         calls.append((course.name, rider.name, conditions, settings, model))
-        return solved
+        return solved, None
 
-    monkeypatch.setattr(plan_cache, "solve_plan", fake)
+    monkeypatch.setattr(plan_cache, "solve_plan_point", fake)
     return calls
 
 
@@ -149,7 +151,41 @@ def test_unconverged_file_is_ignored(tmp_path: Path, solved: Plan,
 def test_only_converged_plans_are_stored(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                          solved: Plan, status: str) -> None:
     bad = dataclasses.replace(solved, status=status, meta={**solved.meta, "success": False})
-    monkeypatch.setattr(plan_cache, "solve_plan", lambda *_a, **_k: bad)
+    monkeypatch.setattr(plan_cache, "solve_plan_point", lambda *_a, **_k: (bad, None))
     got = load_or_solve(COURSE, RIDER, model="1d", cache_dir=tmp_path)
     assert got.status == status  # returned, with its status, for the caller to report
     assert not _files(tmp_path)
+
+
+def test_stored_plan_keeps_its_primal_dual_point(tmp_path: Path) -> None:
+    """A real solve through the cache: the stored file holds the point of the plan's own
+    NLP (on its nodes), which a hit returns exactly; the same plan saved without it (a
+    file from before) loads with none."""
+    plan, point = solve_plan_point(COURSE, RIDER, model="1d")
+    assert point is not None and plan.converged
+    stored = load_or_solve(COURSE, RIDER, model="1d", cache_dir=tmp_path)
+    hit = load_or_solve(COURSE, RIDER, model="1d", cache_dir=tmp_path)
+    for got in (stored, hit):
+        assert got.has_point
+        np.testing.assert_array_equal(got.s_m, point.nodes)
+        for mine, theirs in ((got.point_w, point.w), (got.point_lam_x, point.lam_x),
+                             (got.point_lam_g, point.lam_g)):
+            np.testing.assert_array_equal(mine, theirs)  # deterministic solve, exact file
+    old = tmp_path / "old.plan.npz"
+    dataclasses.replace(hit, point_w=None, point_lam_x=None, point_lam_g=None).save(old)
+    with np.load(old) as data:
+        assert not set(POINT_ARRAYS) & set(data.files)
+    assert not Plan.load(old).has_point
+    assert Plan.load(old).point_lam_g is None
+    np.testing.assert_array_equal(Plan.load(old).v_mps, hit.v_mps)
+
+
+def test_a_point_of_other_nodes_is_not_kept(solved: Plan) -> None:
+    """Only the point of the plan's own NLP: one on other nodes (another mesh) is dropped."""
+    n = 3 * solved.n_nodes
+    other = PrimalDual(solved.s_m[:-1], np.zeros(n), np.zeros(n), np.zeros(n))
+    assert with_point(solved, other) is solved
+    assert with_point(solved, None) is solved
+    same = dataclasses.replace(other, nodes=solved.s_m)
+    kept = with_point(solved, same)
+    assert kept.has_point and kept.point_w is same.w and kept.point_lam_g is same.lam_g
