@@ -158,7 +158,7 @@ def test_nominal_replanned_close_to_the_optimum(course: Course, plan: Plan) -> N
     assert 0 <= lat["median"] <= lat["p95"] <= lat["max"]
 
 
-def test_hot_start_replanned_beats_open_loop(course: Course, plan: Plan) -> None:
+def test_hot_start_replanned_ties_open_loop_on_the_hairpin(course: Course, plan: Plan) -> None:
     """The rider burns W' over the first third; the blind plan then runs dry and
     finishes with W' it could not place, the replanned ride re-budgets it (the horizon,
     then the rest of the course re-solved from the rider's state). On this short course
