@@ -103,15 +103,16 @@ def plan_cli(
     from itt_planner.course.loader import load_course  # noqa: PLC0415
     from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
-    from itt_planner.ocp.course_problem import solve_plan  # noqa: PLC0415
+    from itt_planner.ocp.cache import solve_keeping_point  # noqa: PLC0415
     from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
 
     with errors_to_exit(as_json):
         built = load_course(course)
         conditions = Conditions.from_meteo(wind_kmh=wind_kmh, wind_from_deg=wind_from_deg, mu=mu)
-        solved = solve_plan(built, load_rider(rider), conditions,
-                            OcpSettings(max_cpu_time_s=max_time_s, max_iter=max_iter),
-                            model=model)
+        # With its solver point: a node given this plan (`--plan`) re-solves warm.
+        solved = solve_keeping_point(built, load_rider(rider), conditions,
+                                     OcpSettings(max_cpu_time_s=max_time_s, max_iter=max_iter),
+                                     model)
         result = plan_summary(solved, built)
         if not result["success"] and allow_unconverged:
             result["allowed_unconverged"] = True

@@ -48,6 +48,7 @@ from itt_planner.model.state import RiderState
 from itt_planner.ocp.course_nlp import PrimalDual, spatial_model, start_speed
 from itt_planner.ocp.course_problem import solve_plan_point
 from itt_planner.ocp.course_settings import OcpSettings, Start
+from itt_planner.ocp.horizon_settings import HorizonSettings
 from itt_planner.ocp.plan import Plan
 from itt_planner.ocp.transcription import Layout
 
@@ -64,8 +65,9 @@ class CourseReplanSettings:
         delay_s: stamp time from a request to adopting its result in a deterministic
             engine (module docstring): about what a solve takes live (the rest of
             verona-like: 8-14 s measured from 2 km on, 31 s from the start).
-        min_remaining_m: closer to the finish than this the horizon covers the rest
-            (the default horizon's length).
+        min_remaining_m: closer to the finish than this the horizon covers the rest:
+            the horizon's length (`HorizonSettings.horizon_m`, its default here;
+            `session.config.build_engine` passes the session's).
         ocp: settings of the solve (the full-course plan's, with a shorter CPU cap).
         backoff_within_s: a rider off a re-solved plan less than this after its
             adoption is not following the plans: the least interval between requests
@@ -75,7 +77,7 @@ class CourseReplanSettings:
 
     period_s: float = 30.0
     delay_s: float = 15.0
-    min_remaining_m: float = 1000.0
+    min_remaining_m: float = HorizonSettings.horizon_m
     # A re-solve still running after two periods is stale: 60 s of CPU at most.
     ocp: OcpSettings = field(default_factory=lambda: OcpSettings(max_cpu_time_s=60.0))
     # A period: the Bologna rider left each new plan 0-15 s after its adoption (15 s
@@ -84,22 +86,21 @@ class CourseReplanSettings:
     backoff_max_s: float = 240.0
 
 
-#: States of a re-solve's start the rider's estimate does not measure: the lean, its rate
-#: and the steering. They are left to the solver (`solve_plan(free_start=)`); the plan's
-#: values where the rider is are only their guess. Fixed at the plan's, a re-solve
-#: started from a roll state that belongs to the plan's speed, not the rider's: on the
-#: Zwift Bologna ride (bench/RESULTS.md, 2026-12-01, issue 14) the plan rides its corners
-#: on the inside edge of the road (C11 active), and a rider 0.9 m/s slower than the plan
-#: there, leaning 0.119 rad where the plan's steering at the rider's speed balances
-#: 0.102, could only catch the lean by steering further in, off the road:
-#: Infeasible_Problem_Detected after 119 iterations; free, converged in 116. (Fixed at
-#: the steady turn of the rider's speed it converged in 43, but at a chicane, 5.3 km,
-#: where the plan's lean lags its steering, that lean points the other way, and the
-#: rider's power at the plan's lean broke C15 at the start node: no fixed lean fits.)
-#: Free, the solver picks the roll state that suits the rest best, an optimistic guess
-#: of what is not measured: from a plan's own state the rest came out up to 0.05 s
-#: (0.5 %) faster on the hairpin test course.
-UNMEASURED_STATES = ("phi", "phi_dot", "delta_n")
+#: States of a re-solve's start the rider's estimate does not measure and the solver
+#: chooses (`solve_plan(free_start=)`): the lean and the steering; the plan's values
+#: where the rider is are only their guess. Fixed at the plan's, a re-solve started from
+#: a roll state that belongs to the plan's speed, not the rider's: on the Zwift Bologna
+#: ride (bench/RESULTS.md, 2026-12-01, issue 14) the plan rides its corners on the inside
+#: edge of the road (C11 active), and a rider 0.9 m/s slower than the plan there, leaning
+#: 0.119 rad where the plan's steering at the rider's speed balances 0.102, could only
+#: catch the lean by steering further in, off the road: Infeasible_Problem_Detected after
+#: 119 iterations; free, converged in 116. (Fixed at the steady turn of the rider's
+#: speed it converged in 43, but at a chicane, 5.3 km, where the plan's lean lags its
+#: steering, that lean points the other way: no fixed lean fits.) The roll rate keeps
+#: the plan's: free too, the solver picked roll states no rider is in (a slow rider in
+#: the hairpin leaning 1.2 rad out of the turn, rolling back at 3.6 rad/s; from the
+#: plan's own state a rest "faster" than the plan by up to 0.5 s of 11.3 s), 2026-12-02.
+UNMEASURED_STATES = ("phi", "delta_n")
 
 
 def free_states(start: Start, launch_mps: float) -> tuple[str, ...]:
@@ -115,9 +116,9 @@ def start_from(planner: HorizonPlanner, state: RiderState, s_m: float,
                settings: OcpSettings | None = None) -> Start:
     """The OCP start at `s_m`: the horizon model's initial state from `state` (clipped so
     the NLP is feasible: `HorizonPlanner.initial_state`) and the lean of the planner's
-    plan there (the estimate has none; the rider is near the plan's line). The lean, its
-    rate and the steering are only the guess: the re-solve leaves them free
-    (`UNMEASURED_STATES`).
+    plan there (the estimate has none; the rider is near the plan's line). The lean and
+    the steering are only the guess: the re-solve leaves them free (`UNMEASURED_STATES`);
+    the roll rate is the plan's.
 
     A rider slower than the OCP's launch speed (`course_nlp.start_speed` for `settings`:
     stopped at a pause, or rolling off again) starts as at the start line instead: the

@@ -108,6 +108,8 @@ def build_engine(config: SessionConfig) -> PacingEngine:
         replan_period_s=config.replan_period_s,
         on_plan_band_j=config.on_plan_band_j, line_gate_m=config.line_gate_m,
         deterministic=config.deterministic,
-        course_replan=CourseReplanSettings(period_s=config.course_replan_period_s))
+        # The horizon covers the rest of the course from its own length from the finish.
+        course_replan=CourseReplanSettings(period_s=config.course_replan_period_s,
+                                           min_remaining_m=config.horizon_m))
     return PacingEngine(course, rider, plan, conditions=conditions, planner=planner,
                         settings=settings)

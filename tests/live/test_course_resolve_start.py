@@ -91,12 +91,6 @@ def test_slow_rider_in_a_corner(plan: Plan, planner: HorizonPlanner) -> None:
     assert rest.meta["start"]["free"] == list(UNMEASURED_STATES)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "UNMEASURED_STATES frees the roll rate: the solver picks a roll state no rider is in "
-    "(leaning 1.2 rad out of the turn, rolling back at 3.6 rad/s; the old assertion "
-    "|phi0| < |plan phi| held on main by magnitude with the wrong sign, +0.68 rad). With "
-    "('phi', 'delta_n') free it starts at -0.61 rad (steady lean -0.44, plan -0.76). "
-    "Needs live.course_replan.UNMEASURED_STATES = ('phi', 'delta_n'); then drop this mark"))
 def test_slow_rider_leans_into_the_corner(plan: Plan, planner: HorizonPlanner) -> None:
     """The slow rider of `test_slow_rider_in_a_corner`: the lean the re-solve starts
     with is into the turn, no more than the plan's (which balances a faster rider) and
