@@ -25,14 +25,14 @@ import rerun as rr
 
 from itt_planner.course.geometry import Course
 from itt_planner.live.advice import Advice, Cue, Diagnostic, Level
-from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
+from itt_planner.live.samples import GpsFix, Sample
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
 from itt_planner.ocp.plan import Plan
 from itt_planner.view import rerun_paths as paths
 from itt_planner.view import rerun_scene as scene
-from itt_planner.view.rerun_paths import DISTANCE_TIMELINE, RIDE_TIMELINE
-from itt_planner.view.rerun_scene import GREEN, MPS_TO_KMH, ORANGE, PLAN_SERIES, RED, thin
+from itt_planner.view.rerun_paths import DISTANCE_TIMELINE, MPS_TO_KMH, RIDE_TIMELINE
+from itt_planner.view.rerun_scene import GREEN, ORANGE, PLAN_SERIES, RED, thin
 
 #: Stamps from this value on are POSIX seconds (after 2001-09-09), below: a relative clock.
 POSIX_MIN_S = 1.0e9
@@ -199,17 +199,14 @@ class RideRecorder:
         self.rec.log(paths.map_track_segment(self._track.index), rr.GeoLineStrings(
             lat_lon=[segment], colors=ORANGE, radii=rr.components.Radius.ui_points(2.0)))
 
-    def _view_speed(self, sample: WheelSpeed, _state: RiderState | None) -> None:
-        """Wheel speed (actual), in km/h."""
-        if self._bad_input(sample.stamp_s, "wheel speed", sample.speed_mps):
+    def _view_value(self, sample: Any, _state: RiderState | None) -> None:
+        """An input sample of one value on its series (`paths.SAMPLE_SERIES`: wheel
+        speed in km/h, power in W)."""
+        series = paths.SAMPLE_SERIES[type(sample)]
+        value = float(getattr(sample, series.field))
+        if self._bad_input(sample.stamp_s, series.label, value):
             return
-        self.rec.log(paths.SPEED_ACTUAL, rr.Scalars(sample.speed_mps * MPS_TO_KMH))
-
-    def _view_power(self, sample: PowerReading, _state: RiderState | None) -> None:
-        """Pedal power (actual), in W."""
-        if self._bad_input(sample.stamp_s, "power", sample.power_w):
-            return
-        self.rec.log(paths.POWER_ACTUAL, rr.Scalars(sample.power_w))
+        self.rec.log(series.path, rr.Scalars(value * series.scale))
 
     # ---- estimate and advice -----------------------------------------------------------
     def log_state(self, state: RiderState) -> None:
@@ -350,9 +347,9 @@ class RideRecorder:
                     level=_TEXT_LEVEL.get(diag.level, rr.TextLogLevel.WARN)))
 
 
-#: The view of each input sample type (a new sensor: one `_view_*` method and one entry).
+#: The view of each input sample type: the samples of one value on their series
+#: (`paths.SAMPLE_SERIES`: a new scalar sensor needs no code here), GPS fixes on the map.
 _SAMPLE_VIEWS: dict[type, Callable[[RideRecorder, Any, RiderState | None], None]] = {
     GpsFix: RideRecorder._view_gps,
-    WheelSpeed: RideRecorder._view_speed,
-    PowerReading: RideRecorder._view_power,
+    **dict.fromkeys(paths.SAMPLE_SERIES, RideRecorder._view_value),
 }

@@ -3,7 +3,7 @@
 `rerun_log` logs to these paths, `rerun_blueprint` points its views at the panel roots
 (`MAP`, `WORLD`, `LOG`) and lays out the time-series panels of `PLOT_ROWS`. A new plot
 panel is one root here, its series under it, one row of `PLOT_ROWS`, and the recorder's
-view that logs to it.
+view that logs to it; a new scalar sensor's view is its entry in `SAMPLE_SERIES`.
 
 Timelines:
     ride_time   the message stamps: a timestamp timeline for POSIX stamps (recorded
@@ -46,6 +46,8 @@ Entities (display units, at the edge: km/h, degrees, kJ, ms, named in the path):
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+from itt_planner.live.samples import PowerReading, WheelSpeed
 
 RIDE_TIMELINE = "ride_time"
 DISTANCE_TIMELINE = "distance_m"
@@ -112,6 +114,30 @@ PLOT_ROWS: tuple[tuple[tuple[Panel, ...], float], ...] = (
       Panel(SOLVE_TIME, "Replan solve time (ms)")), 2.0),
     ((Panel(ELEVATION, "Elevation (m)"),), 2.0),
 )
+
+#: Display unit of speeds (the edge: km/h).
+MPS_TO_KMH = 3.6
+
+
+@dataclass(frozen=True)
+class SampleSeries:
+    """How the recorder draws an input sample of one value: the series it goes to, the
+    sample's field, the factor to the series' display unit, and the sample's name in
+    log/inputs (a value it cannot plot)."""
+
+    path: str
+    field: str
+    scale: float
+    label: str
+
+
+#: The input samples of one value and their series (`RideRecorder.log_sample`). A new
+#: scalar sensor: its entry here, with its panel root, series and `PLOT_ROWS` row above.
+#: GPS fixes have a view of their own (map and track).
+SAMPLE_SERIES: dict[type, SampleSeries] = {
+    WheelSpeed: SampleSeries(SPEED_ACTUAL, "speed_mps", MPS_TO_KMH, "wheel speed"),
+    PowerReading: SampleSeries(POWER_ACTUAL, "power_w", 1.0, "power"),
+}
 
 # ---- text logs ---------------------------------------------------------------------------
 LOG_ADVICE = f"{LOG}/advice"

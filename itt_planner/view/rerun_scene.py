@@ -17,11 +17,10 @@ from itt_planner.model.rider import Rider
 from itt_planner.ocp.plan import Plan
 from itt_planner.view import rerun_paths as paths
 from itt_planner.view.rerun_blueprint import default_blueprint, fit_map_zoom
-from itt_planner.view.rerun_paths import DISTANCE_TIMELINE
+from itt_planner.view.rerun_paths import DISTANCE_TIMELINE, MPS_TO_KMH
 
 #: Geometry logged once (course, ribbon, plan line) is thinned to this many points.
 MAX_STATIC_POINTS = 5000
-MPS_TO_KMH = 3.6
 
 GREY = (150, 150, 150)
 ROAD = (90, 90, 95)
