@@ -144,8 +144,10 @@ class Budget:
         res = solver.solve(w0, pr.p, pr.lbw, pr.ubw,
                            lam_x0=None if resume is None else resume.lam_x,
                            lam_g0=None if resume is None else resume.lam_g)
+        # "outcome" is what the attempt means (`PlanStatus`), "status" the solver's words.
         self.attempts.append({"strategy": strategy, "status": res.raw_status,
-                              "iterations": res.iterations, "n_nodes": len(pr.nodes),
+                              "outcome": res.status.value, "iterations": res.iterations,
+                              "n_nodes": len(pr.nodes),
                               "time_s": round(time.perf_counter() - t0, 3)})
         if not res.converged:
             log.info("%s, %s: %s after %d iterations", self.label, strategy, res.raw_status,
@@ -242,6 +244,7 @@ class CourseSolve:
             st, max_iter=None, max_cpu_time_s=min(secs / 3, st.budget("1d", left_m)[1])))
         self.budget.attempts.append({
             "strategy": "1d plan for a warm start", "status": base.solver_status,
+            "outcome": PlanStatus.of(base.solver_status).value,
             "iterations": base.iterations, "n_nodes": base.n_nodes,
             "time_s": round(base.solve_time_s, 3)})
         if base.meta.get("success") and self.budget.usable():

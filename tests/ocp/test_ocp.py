@@ -129,7 +129,7 @@ def test_capped_3d_run_resumes_where_it_stopped(hairpin_plan: Plan) -> None:
     point (multipliers kept): together no more iterations than one uninterrupted run,
     where a restart from scratch would form the active arcs again."""
     whole = hairpin_plan.meta["attempts"][0]
-    assert whole["strategy"] == "cold" and whole["status"] == "Solve_Succeeded"
+    assert whole["strategy"] == "cold" and whole["outcome"] == PlanStatus.CONVERGED
     # A budget whose first share (60 %) stops the cold run 1-2 iterations short and
     # leaves more than the 10 iterations a restart needs.
     budget = math.ceil((whole["iterations"] - 1) / 0.6)
@@ -139,8 +139,8 @@ def test_capped_3d_run_resumes_where_it_stopped(hairpin_plan: Plan) -> None:
     plan = solve_plan(hairpin(), PRESETS["paper"], settings=OcpSettings(max_iter=budget),
                       model="3d")
     cold, resumed = plan.meta["attempts"][:2]
-    assert cold["status"] == "Maximum_Iterations_Exceeded"
-    assert resumed["strategy"] == "resume" and resumed["status"] == "Solve_Succeeded"
+    assert cold["outcome"] == PlanStatus.CAPPED
+    assert resumed["strategy"] == "resume" and resumed["outcome"] == PlanStatus.CONVERGED
     assert cold["iterations"] + resumed["iterations"] <= whole["iterations"] + 5
     assert plan.iterations <= budget
 

@@ -16,6 +16,7 @@ from support.courses import hairpin
 from itt_planner.model.conditions import GRAVITY_MPS2
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.solver import PlanStatus
 
 #: Lateral acceleration beyond the rider's limit the checks allow (m/s^2): C16 is a hard
 #: constraint of the full-course OCP, met to IPOPT's tolerance at the nodes.
@@ -44,4 +45,4 @@ def test_3d_plan_of_a_timid_rider_converges_verified_within_its_limit() -> None:
     assert plan.v_mps[inside].min() <= np.sqrt(limit * (12.0 + 4.0))
     # A refinement after the launch's failed verification, if any, resumed from the
     # converged plan instead of a fresh start that went astray.
-    assert all(a["status"] == "Solve_Succeeded" for a in attempts), attempts
+    assert all(a["outcome"] == PlanStatus.CONVERGED for a in attempts), attempts
