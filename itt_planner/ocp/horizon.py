@@ -183,10 +183,11 @@ class HorizonPlanner:
         """State vector of the horizon model from the estimate (`HorizonWindow`)."""
         return self._window.initial_state(state, s_m)
 
-    def corner_speed_cap(self, nodes: np.ndarray, v0: float) -> np.ndarray:
-        """Upper speed bound per node from the plan's corners
-        (`HorizonWindow.corner_speed_cap`)."""
-        return self._window.corner_speed_cap(nodes, v0)
+    def corner_speed_cap(self, nodes: np.ndarray, v0: float, w_n0: float = -1.0
+                         ) -> np.ndarray:
+        """Upper speed bound per node from the plan's corners, for a rider at `v0` with
+        the command `w_n0` (`HorizonWindow.corner_speed_cap`)."""
+        return self._window.corner_speed_cap(nodes, v0, w_n0)
 
     # ---- warm start ----------------------------------------------------------------------
     def _guess(self, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
@@ -265,9 +266,9 @@ class HorizonPlanner:
         for kind in kinds:
             if kind == "retry":  # the plan re-anchored at the rider: a start from elsewhere
                 x_guess, u_guess = self._window.plan_guess(nodes)
-            if kind != "warm":  # re-anchor the plan's W' at the rider's (a W' deficit)
-                ie = m.index("e_n")
-                x_guess[ie] = np.clip(x_guess[ie] - (x_guess[ie, 0] - x0[ie]), 0.0, 1.0)
+            if kind != "warm":  # the plan re-anchored at the rider (`HorizonWindow.anchor`)
+                x_guess = self._window.anchor(nodes, x_guess, x0, lay.split(lbw)[0],
+                                              lay.split(ubw)[0])
             x_guess[:, 0] = x0
             lam_x0, lam_g0 = self._shift_multipliers(nodes) if kind == "warm" else (None, None)
             starts.append(lay.join(x_guess, u_guess))

@@ -23,6 +23,10 @@ from itt_planner.ocp.horizon_settings import HorizonSettings
 from itt_planner.ocp.mesh import target_spacing
 from itt_planner.ocp.plan import Plan
 
+#: Distance over which a cold start joins the plan's line and speed from the rider's (m):
+#: 5 m across the road at a heading of 0.05 rad.
+_REJOIN_M = 100.0
+
 
 class HorizonWindow:
     """The numeric set-up of replans on one course for one rider and one plan."""
@@ -117,16 +121,38 @@ class HorizonWindow:
         u = np.vstack([plan.at(PLAN_ARRAYS[name], nodes[:-1]) for name in ("u_delta", "u_w")])
         return x, u
 
+    def anchor(self, nodes: np.ndarray, x: np.ndarray, x0: np.ndarray, x_lo: np.ndarray,
+               x_hi: np.ndarray) -> np.ndarray:
+        """A start from the plan (`plan_guess`, states `x`) re-anchored at the rider's `x0`.
+
+        W' shifted by the rider's deficit (or surplus) over the whole window; the line
+        and the speed by the rider's offsets, fading out over `_REJOIN_M`, within the
+        bounds `x_lo`, `x_hi`. Why: with only the first node moved, a rider ridden 5.4 m
+        across the road from the plan's line (a recorded ride of an older plan's line)
+        started IPOPT from a 5.4 m jump in a 3 m interval, and the cold replans hit the
+        iteration cap (verona-like replay, 14.4 km).
+        """
+        m, x = self.model, x.copy()
+        ie = m.index("e_n")
+        x[ie] = np.clip(x[ie] - (x[ie, 0] - x0[ie]), 0.0, 1.0)
+        fade = np.clip(1.0 - (nodes - nodes[0]) / _REJOIN_M, 0.0, 1.0)
+        for i in (m.index("n"), m.index("v")):
+            x[i] = np.clip(x[i] + fade * (x0[i] - x[i, 0]), x_lo[i], x_hi[i])
+        x[:, 0] = x0
+        return x
+
     def bounds(self, nodes: np.ndarray, x0: np.ndarray) -> Bounds:
         """The simple bounds (`bounds.simple_bounds`) over the window, the speed capped by
         physics over the window and by the plan's corner speeds (`corner_speed_cap`)."""
         v0 = float(x0[self.model.index("v")])
-        v_max = np.minimum(self.corner_speed_cap(nodes, v0),
+        w_n0 = float(x0[self.model.index("w_n")])
+        v_max = np.minimum(self.corner_speed_cap(nodes, v0, w_n0),
                            speed_limit_mps(self.course, nodes, self.rider, self.conditions, v0))
         return simple_bounds(self.model, self.course, nodes, x0,
                              margin_m=self.settings.margin_m, v_max_mps=v_max)
 
-    def corner_speed_cap(self, nodes: np.ndarray, v0: float) -> np.ndarray:
+    def corner_speed_cap(self, nodes: np.ndarray, v0: float, w_n0: float = -1.0
+                         ) -> np.ndarray:
         """Upper speed bound per node: the plan's speed where the plan corners at the grip
         limit (friction use >= `corner_cap_use`), plus `corner_cap_tol_mps`.
 
@@ -137,12 +163,21 @@ class HorizonWindow:
         lean in, and a rider following that ran wide (bench/RESULTS.md). Elsewhere the
         speed stays free (pacing). The cap never asks for more than braking at
         `corner_cap_brake_g` g from the rider's speed gives (a rider measured too fast
-        still has a feasible NLP).
+        still has a feasible NLP). That braking starts once the command `w_n` has ramped
+        from the rider's `w_n0` to it at the fastest rate E6 allows (no deceleration is
+        credited before): a rider measured coasting 1.1 m/s over the plan at a corner
+        entry could not lose 0.3 g worth of speed in the first 4.8 m interval (`w_n`
+        from 0 reaches -0.3 only after ~0.22 s) and the NLP was infeasible (verona-like
+        replay, 3 of its 10 fallbacks). The default `w_n0` = -1 (braking fully) credits
+        braking from the first metre.
         """
-        st, plan = self.settings, self.plan
+        st, plan, r = self.settings, self.plan, self.rider
         cap = np.where(plan.at("friction_use", nodes) >= st.corner_cap_use,
                        plan.at("v_mps", nodes) + st.corner_cap_tol_mps, np.inf)
-        reach = np.sqrt(np.maximum(
-            v0 ** 2 - 2 * st.corner_cap_brake_g * GRAVITY_MPS2 * (nodes - nodes[0]), 0.0))
+        w_brake = -st.corner_cap_brake_g / self.conditions.mu_x
+        rate_per_s = U_W_MAX * r.power_rate_max_wps / r.max_power_w  # E6
+        lag_m = v0 * max(w_n0 - w_brake, 0.0) / rate_per_s
+        reach = np.sqrt(np.maximum(v0 ** 2 - 2 * st.corner_cap_brake_g * GRAVITY_MPS2
+                                   * np.maximum(nodes - nodes[0] - lag_m, 0.0), 0.0))
         bound: np.ndarray = np.maximum(cap, np.maximum(reach, V_MIN_MPS))
         return bound

@@ -107,7 +107,7 @@ def test_usable_replans_on_a_technical_descent() -> None:
     settings = HorizonSettings(max_wall_time_s=20.0)
     planner = HorizonPlanner(course, rider, plan, settings=settings)
     rng = np.random.default_rng(0)
-    sols = []
+    sols, st_of = [], {}
     for s in np.arange(0.0, course.length_m - 20, 50.0):
         st = plan_state(plan, s, course)
         st = dataclasses.replace(
@@ -115,6 +115,7 @@ def test_usable_replans_on_a_technical_descent() -> None:
             n_m=st.n_m + 0.3 * rng.standard_normal(),
             w_prime_j=max(0.0, st.w_prime_j - rng.uniform(0.0, 1500.0)))
         sols.append(planner.solve(st))
+        st_of[id(sols[-1])] = st
     assert sum(sol.success for sol in sols) >= 0.95 * len(sols), [sol.status for sol in sols]
     for sol in (sol for sol in sols if sol.success):
         assert sol.w_prime_j.min() >= -0.01  # C12
@@ -124,10 +125,44 @@ def test_usable_replans_on_a_technical_descent() -> None:
         assert np.all(-sol.n_m[1:] <= course.at("width_right_m", sol.s_m[1:]) - 0.5 + 1e-3)
         # Where the plan corners at the grip limit, no faster than the plan (+ tolerance)
         # unless the rider arrived too fast to brake to it.
-        cap = planner.corner_speed_cap(sol.s_m, float(sol.v_mps[0]))
+        w_n0 = planner.initial_state(st_of[id(sol)], float(sol.s_m[0]))[
+            planner.state_names.index("w_n")]
+        cap = planner.corner_speed_cap(sol.s_m, float(sol.v_mps[0]), float(w_n0))
         assert np.all(sol.v_mps <= cap + 1e-3)
         use = friction_use(sol, rider)
         assert use[1:].max() <= max(1.0, use[0]) + settings.grip_tol + 1e-3, sol.status
+
+
+def test_corner_cap_leaves_time_to_build_up_braking(plan: Plan,
+                                                    planner: HorizonPlanner) -> None:
+    """A rider measured too fast before a grip-limited corner: the cap never asks for more
+    speed loss than braking at `corner_cap_brake_g` after the command ramped to it from
+    the measured `w_n` at the E6 rate (drag ignored) gives; braking already, as before."""
+    rider, st = PRESETS["paper"], planner.settings
+    use = plan.at("friction_use", plan.s_m)
+    s_corner = float(plan.s_m[np.argmax(use >= st.corner_cap_use)])
+    nodes = np.linspace(s_corner - 1.0, s_corner + 19.0, 41)  # the corner 1 m ahead
+    v0 = float(plan.at("v_mps", nodes[0])) + 3.0
+    rate = 50.0 * rider.power_rate_max_wps / rider.max_power_w  # U_W_MAX, E6
+    a_max = st.corner_cap_brake_g * GRAVITY_MPS2
+    for w_n0 in (0.0, 0.5):
+        # the fastest speed loss: w_n ramps down at `rate`, braking up to a_max
+        s, v, t, reach = nodes[0], v0, 0.0, []
+        for target in nodes:
+            while s < target - 1e-9:
+                ds = min(0.05, target - s)
+                a = min(max(-(w_n0 - rate * t), 0.0) * Conditions().mu_x * GRAVITY_MPS2,
+                        a_max)
+                t += ds / v
+                v = float(np.sqrt(max(v * v - 2 * a * ds, 1e-6)))
+                s += ds
+            reach.append(v)
+        cap = planner.corner_speed_cap(nodes, v0, w_n0)
+        assert np.all(cap >= np.array(reach) - 1e-6)
+        # without the ramp (the old cap) the first metres asked for the impossible
+        assert np.any(planner.corner_speed_cap(nodes, v0) < np.array(reach) - 0.05)
+    np.testing.assert_allclose(planner.corner_speed_cap(nodes, v0, -1.0),
+                               planner.corner_speed_cap(nodes, v0))
 
 
 def test_capped_iterate_returned_only_when_feasible(plan: Plan) -> None:
