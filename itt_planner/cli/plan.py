@@ -117,6 +117,9 @@ def plan_cli(
         if not result["success"] and allow_unconverged:
             result["allowed_unconverged"] = True
         if output is not None:
+            # Where the course came from, so `report PLAN` finds a file course by itself.
+            solved.meta["course_spec"] = (str(Path(course).resolve()) if Path(course).exists()
+                                          else course)
             result["output"] = str(solved.save(output))
         emit(result, as_json, _human)
     if not result["success"]:

@@ -179,7 +179,8 @@ def make_report(plan_path: Path, output: Path, course_spec: str | None,
     from itt_planner.view.report import rider_from_plan, summary, write_report  # noqa: PLC0415
 
     plan = Plan.load(plan_path)
-    spec = course_spec or plan.meta.get("course")
+    # The course as `plan -o` was given it (a file path), else its name (a demo course).
+    spec = course_spec or plan.meta.get("course_spec") or plan.meta.get("course")
     if not spec:
         raise IttError(f"{plan_path}: the plan names no course; pass --course")
     course = load_course(spec)

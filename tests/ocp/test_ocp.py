@@ -332,6 +332,11 @@ def test_plan_cli_json(tmp_path: Path, model: str) -> None:
     assert 0 <= info["w_prime_end_j"] <= 0.02 * PRESETS["typical"].w_prime_j
     assert (info["max_lean_deg"] > 15) if model == "3d" else info["max_lean_deg"] == 0
     assert Plan.load(out).finish_time_s == pytest.approx(info["finish_time_s"], abs=0.01)
+    # The plan remembers its course file: `report PLAN` needs no --course.
+    report = runner.invoke(app, ["report", str(out), "-o", str(tmp_path / "r.html"), "--json"])
+    _no_traceback(report)
+    assert report.exit_code == 0, report.output
+    assert json.loads(report.stdout)["course"] == "short"
 
 
 def test_compare_riders_cli_json(tmp_path: Path) -> None:
