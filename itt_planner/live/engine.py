@@ -228,6 +228,8 @@ class PacingEngine:
                 course_replans_asked=st["course_replans_asked"],
                 course_replans_adopted=st["course_replans"],
                 course_replan_failures=st["course_replan_failures"],
+                course_replans_backed_off=st["course_replans_backed_off"],
+                course_replans_skipped_stopped=st["course_replans_skipped_stopped"],
                 refits_up=st["cp_refits_up"], refits_down=st["cp_refits_down"],
                 cp_in_use_w=self._balance.cp_w, plan_version=self._plans.version,
                 plan_status=self._plans.plan.solver_status,
@@ -286,12 +288,10 @@ class PacingEngine:
             if self._planner_stale:  # the inputs stay unlocked while it is rebuilt
                 self._replace_planner()
             start = horizon.on_line(state, plans.plan)
-            if left_plan and self._gate.allow(stamp_s, state.speed_mps, state.s_m,
-                                              self.course.length_m - state.s_m):
-                asked = self._stats["course_replans_asked"]
-                plans.request(stamp_s, horizon.planner, start)
-                if self._stats["course_replans_asked"] > asked:
-                    self._gate.asked(stamp_s)
+            if (left_plan and self._gate.allow(stamp_s, state.speed_mps, state.s_m,
+                                               self.course.length_m - state.s_m)
+                    and plans.request(stamp_s, horizon.planner, start)):
+                self._gate.asked(stamp_s)
             if self.course.length_m - state.s_m <= _FINISHED_M:
                 return self._finished(stamp_s, state)
             good, fallback = horizon.solve(state, start, plans.plan, self.rider.w_prime_j)

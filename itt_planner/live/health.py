@@ -32,6 +32,8 @@ class EngineCounts:
         course_replans_asked, course_replans_adopted, course_replan_failures:
             re-solves of the rest of the course asked for, adopted, failed (a worker
             error or an unconverged solve: the plan in force stays).
+        course_replans_backed_off, course_replans_skipped_stopped: re-solves the gate
+            held (`resolve_gate`): the rider left each new plan at once, or stood.
         refits_up, refits_down: CP revisions (`cp_monitor`).
         cp_in_use_w, plan_version: the belief now (version 0: the first plan).
         plan_status, plan_converged: solver status of the plan in force.
@@ -45,6 +47,8 @@ class EngineCounts:
     course_replans_asked: int
     course_replans_adopted: int
     course_replan_failures: int
+    course_replans_backed_off: int
+    course_replans_skipped_stopped: int
     refits_up: int
     refits_down: int
     cp_in_use_w: float

@@ -95,17 +95,20 @@ class PlanInForce:
         self._on_plan = dev < (band if self._on_plan else 0.5 * band)
         return self._on_plan
 
-    def request(self, stamp_s: float, planner: HorizonPlanner, state: RiderState) -> None:
+    def request(self, stamp_s: float, planner: HorizonPlanner, state: RiderState) -> bool:
         """Ask for the rest of the course re-solved from `state` with the planner's
-        rider (the CP in use) (`course_replan`; the replanner rate-limits)."""
+        rider (the CP in use) (`course_replan`; the replanner rate-limits). Returns
+        whether a re-solve was started."""
         s0 = float(np.clip(state.s_m, 0.0, self.course.length_m - 1.0))
         start = start_from(planner, state, s0, self._replanner.settings.ocp)
-        if self._replanner.request(stamp_s, planner.rider, self.plan, start):
-            self._stats["course_replans_asked"] += 1
-            self._stats["course_replans_started_"
-                        + ("warm" if self._replanner.last_warm else "cold")] += 1
-            log.info("engine: off the plan at s=%.0f m (W' %.0f J, CP %.0f W): re-solving the "
-                     "rest of the course", s0, state.w_prime_j, planner.rider.critical_power_w)
+        if not self._replanner.request(stamp_s, planner.rider, self.plan, start):
+            return False
+        self._stats["course_replans_asked"] += 1
+        self._stats["course_replans_started_"
+                    + ("warm" if self._replanner.last_warm else "cold")] += 1
+        log.info("engine: off the plan at s=%.0f m (W' %.0f J, CP %.0f W): re-solving the "
+                 "rest of the course", s0, state.w_prime_j, planner.rider.critical_power_w)
+        return True
 
     def take(self, stamp_s: float) -> bool:
         """Make a finished re-solve of the rest of the course the plan in force (if it
@@ -119,8 +122,7 @@ class PlanInForce:
         if plan is None:
             return False
         first = (plan.meta.get("attempts") or [{}])[0]
-        if (first.get("strategy") == "warm"
-                and PlanStatus.of(str(first.get("status"))) is PlanStatus.CONVERGED):
+        if first.get("strategy") == "warm" and first.get("outcome") == PlanStatus.CONVERGED:
             self._stats["course_replans_warm_converged"] += 1  # no restart needed
         if not plan.meta.get("success", False):
             log.warning("engine: re-solve of the course from s=%.0f m ended %s: the plan "

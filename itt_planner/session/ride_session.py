@@ -240,13 +240,13 @@ class RideSession:
         if counts.course_replan_failures:
             out.append(f"{counts.course_replan_failures} of {counts.course_replans_asked} "
                        "re-solves of the rest of the course failed: the plan in force stayed")
-        held = {k: self.engine.counters.get(f"course_replans_{k}", 0)
-                for k in ("backed_off", "skipped_stopped")}
-        if any(held.values()):  # `live.resolve_gate`
-            out.append(f"{sum(held.values())} re-solves of the rest of the course were held "
-                       f"({counts.course_replans_asked} asked): {held['backed_off']} backed off "
-                       f"(the rider left the new plans soon after adoption), "
-                       f"{held['skipped_stopped']} while the rider was stopped")
+        held = counts.course_replans_backed_off + counts.course_replans_skipped_stopped
+        if held:  # `live.resolve_gate`
+            out.append(f"{held} re-solves of the rest of the course were held "
+                       f"({counts.course_replans_asked} asked): "
+                       f"{counts.course_replans_backed_off} backed off (the rider left the new "
+                       f"plans soon after adoption), {counts.course_replans_skipped_stopped} "
+                       "while the rider was stopped")
         refits = counts.refits_up + counts.refits_down
         if refits:
             out.append(f"critical power refitted {refits} time(s) ({counts.refits_down} down, "
