@@ -45,12 +45,11 @@ from itt_planner.errors import SolveError
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
-from itt_planner.ocp.course_nlp import PrimalDual, spatial_model, start_speed
+from itt_planner.ocp.course_nlp import PrimalDual, course_layout, start_speed
 from itt_planner.ocp.course_problem import solve_plan_point
 from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.horizon_settings import HorizonSettings
 from itt_planner.ocp.plan import Plan
-from itt_planner.ocp.transcription import Layout
 
 if TYPE_CHECKING:
     from itt_planner.ocp.horizon import HorizonPlanner
@@ -150,9 +149,7 @@ def plan_point(plan: Plan, settings: OcpSettings) -> tuple[PrimalDual | None, st
         return None, "the plan carries no primal-dual point"
     if plan.model != "3d":
         return None, f"the plan's point is of the {plan.model} model, the re-solve is 3d"
-    spm = spatial_model("3d", settings.wprime_model)
-    # The full-course NLP's layout (`course_nlp`: hard path constraints, acceleration rows).
-    lay = Layout(spm.nx, spm.nu, 0, plan.n_nodes - 1, int(spm.path.size1_out(0)))
+    lay = course_layout("3d", settings.wprime_model, plan.n_nodes - 1)
     sizes = (len(plan.point_w), len(plan.point_lam_x), len(plan.point_lam_g))
     if sizes != (lay.n_var, lay.n_var, lay.n_g):
         return None, (f"the plan's point has sizes {sizes}, the NLP on its {plan.n_nodes} "

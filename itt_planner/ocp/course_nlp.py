@@ -38,7 +38,7 @@ from itt_planner.ocp.guess import LAUNCH_GRIP, PLAN_ARRAYS, initial_guess, plan_
 from itt_planner.ocp.mesh import road_data
 from itt_planner.ocp.plan import Plan
 from itt_planner.ocp.solver import PlanStatus, SolveResult
-from itt_planner.ocp.transcription import Transcription, transcribe
+from itt_planner.ocp.transcription import Layout, Transcription, layout_of, transcribe
 
 #: Interval length (m) above which the RK4 integrator takes several substeps.
 _SUBSTEP_M = 4.0
@@ -66,6 +66,12 @@ def _transcription(kind: str, wprime_model: WPrimeModel, n_intervals: int, subst
     """The NLP of one node count (built once per process)."""
     return transcribe(spatial_model(kind, wprime_model), n_intervals, substeps=substeps,
                       compile_c=jit)
+
+
+def course_layout(kind: str, wprime_model: WPrimeModel, n_intervals: int) -> Layout:
+    """The layout of the full-course NLP (`_transcription`'s) on `n_intervals`, without
+    building it: what a primal-dual point of that NLP must fit."""
+    return layout_of(spatial_model(kind, wprime_model), n_intervals)
 
 
 def start_speed(rider: Rider, conditions: Conditions, settings: OcpSettings) -> float:

@@ -303,6 +303,13 @@ def _hessian(lay: Layout, kernels: tuple[ca.Function, ca.Function],
     return ca.MX(sp_h, ca.vertcat(*hvals)[src_h])
 
 
+def layout_of(model: SpatialModel, n_intervals: int, *, soft: bool = False,
+              accel_bound: bool = True) -> Layout:
+    """The layout of `transcribe`'s NLP for these arguments, without building it."""
+    n_path = int(model.path.size1_out(0))
+    return Layout(model.nx, model.nu, n_path if soft else 0, n_intervals, n_path, accel_bound)
+
+
 def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
                soft: bool = False, slack_weight: float = 100.0,
                compile_c: bool = True, accel_bound: bool = True) -> Transcription:
@@ -320,9 +327,7 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
         compile_c: compile the stage kernels to C (cached per machine).
     """
     nx, nu, n = model.nx, model.nu, n_intervals
-    n_path = int(model.path.size1_out(0))
-    ns = n_path if soft else 0
-    lay = Layout(nx, nu, ns, n, n_path, accel_bound)
+    lay = layout_of(model, n_intervals, soft=soft, accel_bound=accel_bound)
     nz, st = nx + nu, lay.stage
     f_k, jf_k, hk_k, p_k, hn_k = stage_kernels(model, substeps, compile_c)
     iv, ie = model.index("v"), model.index("e_n")
