@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -29,6 +30,7 @@ from itt_planner.model.dynamics import CONTROLS_1D, STATES_1D, SpatialModel
 from itt_planner.model.params import lateral_limit_mps2
 from itt_planner.model.rider import Rider
 from itt_planner.model.steady import steady_speed_mps
+from itt_planner.model.wprime import e_n_rate
 from itt_planner.ocp.bounds import U_DELTA_MAX, U_W_MAX, V_MIN_MPS
 from itt_planner.ocp.mesh import speed_spacing_m
 from itt_planner.ocp.plan import Plan
@@ -106,8 +108,9 @@ def initial_guess(model: SpatialModel, course: Course, nodes: np.ndarray, rider:
     return x, np.zeros((model.nu, len(nodes) - 1))
 
 
-def _resistance_n(v: float, sin_b: float, cos_b: float, rider: Rider, k_v: float) -> float:
-    """Rolling, gravity and air resistance (N) at speed `v` (E3 without wind)."""
+def _resistance_n(v: Any, sin_b: Any, cos_b: Any, rider: Rider, k_v: float) -> Any:
+    """Rolling, gravity and air resistance (N) at speed `v` (E3 without wind); numbers
+    or arrays alike."""
     return rider.mass_kg * GRAVITY_MPS2 * (rider.crr * cos_b + sin_b) + k_v * v * v
 
 
@@ -130,7 +133,7 @@ def _pacing_w(flat_w: float, grade: np.ndarray, rider: Rider, conditions: Condit
             v = steady_speed_mps(marginal / eta, triple, conditions, float(g))
             b = math.atan(g)
             cache[g] = min(rider.max_power_w, max(
-                0.0, v * (mg * (rider.crr * math.cos(b) + math.sin(b)) + k_v * v * v) / eta))
+                0.0, v * _resistance_n(v, math.sin(b), math.cos(b), rider, k_v) / eta))
         out[i] = cache[g]
     return out
 
@@ -178,16 +181,15 @@ def _arc_ride(course: Course, nodes: np.ndarray, rider: Rider, conditions: Condi
         v[i] = min(v[i], math.sqrt(max(vn * vn + 2 * decel * ds[i], V_MIN_MPS ** 2)))
     vm = 0.5 * (v[1:] + v[:-1])
     force = (m * (v[1:] ** 2 - v[:-1] ** 2) / (2 * ds)
-             + m * g * (rider.crr * cos_b[:-1] + sin_b[:-1]) + k_v * vm * vm)
+             + _resistance_n(vm, sin_b[:-1], cos_b[:-1], rider, k_v))
     w = np.where(force > 0, force * vm / (eta * rider.max_power_w), force / (grip_x * m))
     w = np.clip(np.append(w, w[-1]), -1.0, 1.0)
     w[0] = rider.critical_power_w / rider.max_power_w  # the start's (course_nlp)
     e = np.empty(len(nodes))
     e[0] = 1.0
     p_plus = rider.max_power_w * np.maximum(w, 0.0)
-    for i in range(len(ds)):  # E9, Skiba
-        excess = p_plus[i] - rider.critical_power_w
-        rate = (-excess if excess > 0 else -excess * (1 - e[i])) / rider.w_prime_j
+    for i in range(len(ds)):  # E9 (Skiba)
+        rate = float(e_n_rate(e[i], p_plus[i], rider.critical_power_w, rider.w_prime_j))
         e[i + 1] = min(1.0, e[i] + rate * ds[i] / vm[i])
     return v, w, e
 
