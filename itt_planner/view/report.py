@@ -31,10 +31,7 @@ from itt_planner.course.geometry import Corner, Course
 from itt_planner.errors import IttError
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.plan import Plan
-from itt_planner.view.report_sections import ReportSection, section_html
-from itt_planner.view.report_sections import (
-    table_cell as table_cell,  # noqa: PLC0414  (re-exported: the sweep report uses it)
-)
+from itt_planner.view.report_sections import ReportSection, section_html, table_cell
 from itt_planner.view.ride_report import BeliefEvent, RideTrace, actual_finish_s, belief_events
 
 MPS_TO_KMH = 3.6
