@@ -54,7 +54,7 @@ def validate_for_report(ride: Path, course: Course, rider: Rider, plan: Plan,
     return val
 
 
-def unexplained_text(p: dict[str, Any]) -> str:
+def _unexplained_text(p: dict[str, Any]) -> str:
     """The power the model does not explain, as a phrase ('' without the ride's inputs)."""
     inputs = p.get("ride_inputs") or {}
     if "unexplained_sd_w" not in inputs:
@@ -69,7 +69,7 @@ def _physics_line(p: dict[str, Any]) -> str:
             f"({p['finish_error_pct']:+.2f} %); speed MAE {p['mae_kmh']}, RMSE {p['rmse_kmh']}, "
             f"bias {p['bias_kmh']:+} km/h (noise floor {p['noise_floor_kmh']}); "
             f"{100 * p['share_within_2kmh']:.0f} % of the distance within +-2 km/h"
-            + unexplained_text(p))
+            + _unexplained_text(p))
 
 
 def three_d_gain(physics: list[dict[str, Any]]) -> str | None:

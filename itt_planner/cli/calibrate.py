@@ -93,21 +93,26 @@ def _human_validation(r: dict[str, Any]) -> str:
     values = ", ".join(f"{k} {v}" for k, v in r["rider_values"].items())
     head = (f"{r['ride']} on {r['course']} ({r['covered_m'] / 1000:.1f} km), rider "
             f"{r['rider']} ({values}):")
-    lines = [head]
-    lines += [f"  physics {p['model']} ({p['conditions']}): finish {p['finish_s']} s vs "
-              f"{p['ride_moving_s']} s ({p['finish_error_pct']:+.2f} %), speed MAE "
-              f"{p['mae_kmh']} RMSE {p['rmse_kmh']} bias {p['bias_kmh']} km/h, "
-              f"{100 * p['share_within_2kmh']:.0f} % within 2 km/h; noise floor "
-              f"{p['noise_floor_kmh']} km/h"
-              + (f"; ride's inputs {p['ride_inputs']}" if "ride_inputs" in p else "")
-              for p in r["physics"]]
+    return "\n".join([head, *validation_lines(r)])
+
+
+def validation_lines(r: dict[str, Any]) -> list[str]:
+    """A validation's physics and plan checks (`Validation.figures`), a line each, as
+    `validate` and `report` print them."""
+    lines = [f"  physics {p['model']} ({p['conditions']}): finish {p['finish_s']} s vs "
+             f"{p['ride_moving_s']} s ({p['finish_error_pct']:+.2f} %), speed MAE "
+             f"{p['mae_kmh']} RMSE {p['rmse_kmh']} bias {p['bias_kmh']} km/h, "
+             f"{100 * p['share_within_2kmh']:.0f} % within 2 km/h; noise floor "
+             f"{p['noise_floor_kmh']} km/h"
+             + (f"; ride's inputs {p['ride_inputs']}" if "ride_inputs" in p else "")
+             for p in r["physics"]]
     if "physics_3d" in r:
         lines.append(f"  physics 3d: {r['physics_3d']}")
     lines += [f"  plan {p['model']} [{p['solver_status']}]: {p['plan_finish_s']} s vs ride "
               f"{p['ride_moving_s']} s ({p['plan_minus_ride_pct']:+.2f} %), power MAE "
               f"{p['power_mae_w']} W; plan - ride by kind (s): {p['time_by_kind_s']}"
               for p in r.get("plans", [])]
-    return "\n".join(lines)
+    return lines
 
 
 @app.command("validate")

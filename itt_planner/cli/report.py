@@ -15,6 +15,7 @@ from typing import Any
 import typer
 
 from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit
+from itt_planner.cli.calibrate import validation_lines
 
 #: Models `report` replays the ride's power through by default.
 VALIDATE_MODELS = ["1d", "3d"]
@@ -49,23 +50,12 @@ def _human_calibration(cal: dict[str, Any] | None) -> list[str]:
 def _human_validation(val: dict[str, Any] | None) -> list[str]:
     if val is None:
         return []
-    from itt_planner.calibration.report_sections import unexplained_text  # noqa: PLC0415
-
     if "not_run" in val:
         return [f"validation not run: {val['not_run']}"]
     lines = [(f"validation against {val['ride']} ({val['covered_m'] / 1000:.1f} km, day wind "
-             f"{val['day_wind']}):")]
-    lines += [f"  physics {p['model']} ({p['conditions']}): finish {p['finish_error_pct']:+.2f} %,"
-              f" speed MAE {p['mae_kmh']} RMSE {p['rmse_kmh']} bias {p['bias_kmh']:+} km/h "
-              f"(noise floor {p['noise_floor_kmh']}), {100 * p['share_within_2kmh']:.0f} % "
-              "within 2 km/h" + unexplained_text(p) for p in val["physics"]]
-    if "physics_3d" in val:
-        lines.append(f"  physics 3d not run: {val['physics_3d']}")
+             f"{val['day_wind']}):"), *validation_lines(val)]
     if "three_d_vs_one_d" in val:
         lines.append(f"  3d vs 1d {val['three_d_vs_one_d']}")
-    lines += [f"  plan {p['model']}: {p['plan_finish_s']} s vs ride {p['ride_moving_s']} s "
-              f"({p['plan_minus_ride_pct']:+.2f} %), power MAE {p['power_mae_w']} W"
-              for p in val.get("plans", [])]
     return lines
 
 
