@@ -13,7 +13,7 @@ import pytest
 PKG = Path(__file__).resolve().parents[1] / "itt_planner"
 
 #: The data path, bottom to top; a module may import its own stage and those before it.
-STAGES = ("errors", "course", "model", "ocp", "live", "logs", "view", "session", "sim",
+STAGES = ("errors", "units", "course", "model", "ocp", "live", "logs", "view", "session", "sim",
           "calibration", "sweep", "cli")
 #: Third-party edges the core stages (course .. live) must never reach.
 EDGE_PACKAGES = ("itt_msgs_py", "rclpy", "rerun", "mcap", "mcap_ros2", "rosbags",

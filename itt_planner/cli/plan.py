@@ -19,6 +19,7 @@ from typing import Any
 import typer
 
 from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit
+from itt_planner.units import MPS_TO_KMH
 
 #: Exit code of `plan` when the solver stopped without converging (module docstring).
 EXIT_NOT_CONVERGED = 3
@@ -35,7 +36,7 @@ def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
     return {
         "course": course.name, "model": plan.model,
         "finish_time_s": round(plan.finish_time_s, 2),
-        "mean_speed_kmh": round(3.6 * course.length_m / plan.finish_time_s, 2),
+        "mean_speed_kmh": round(MPS_TO_KMH * course.length_m / plan.finish_time_s, 2),
         "mean_power_w": round(mean_power, 1),
         "w_prime_end_j": round(float(plan.w_prime_j[-1]), 1),
         "w_prime_min_j": round(float(plan.w_prime_j.min()), 1),
@@ -51,9 +52,9 @@ def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
         "corners": [
             {"apex_s_m": round(r.apex_s_m, 1), "min_radius_m": round(r.min_radius_m, 1),
              "braking_s_m": None if r.braking_s_m is None else round(r.braking_s_m, 1),
-             "entry_speed_kmh": round(3.6 * r.entry_speed_mps, 1),
-             "apex_speed_kmh": round(3.6 * r.apex_speed_mps, 1),
-             "exit_speed_kmh": round(3.6 * r.exit_speed_mps, 1),
+             "entry_speed_kmh": round(MPS_TO_KMH * r.entry_speed_mps, 1),
+             "apex_speed_kmh": round(MPS_TO_KMH * r.apex_speed_mps, 1),
+             "exit_speed_kmh": round(MPS_TO_KMH * r.exit_speed_mps, 1),
              "max_lean_deg": round(math.degrees(r.max_lean_rad), 1), "time_s": round(r.time_s, 2)}
             for r in corner_table(plan, course.corners)],
         "splits": [{k: round(v, 2) for k, v in row.items()} for row in splits(plan)],

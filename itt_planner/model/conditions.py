@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 from itt_planner.errors import RiderError
 from itt_planner.model.rider import PAPER_AIR_DENSITY_KGPM3
+from itt_planner.units import MPS_TO_KMH
 
 GRAVITY_MPS2 = 9.81
 
@@ -40,7 +41,7 @@ class Conditions:
     def from_meteo(cls, *, wind_kmh: float = 0.0, wind_from_deg: float = 0.0,
                    mu: float = 1.0) -> Conditions:
         """Build from edge units: wind speed in km/h, direction FROM in degrees (0 = North)."""
-        return cls(mu_x=mu, mu_y=mu, wind_speed_mps=wind_kmh / 3.6,
+        return cls(mu_x=mu, mu_y=mu, wind_speed_mps=wind_kmh / MPS_TO_KMH,
                    wind_from_rad=math.radians(wind_from_deg))
 
     def with_lateral_grip(self, fraction: float) -> Conditions:

@@ -34,7 +34,8 @@ from matplotlib.figure import Figure
 from itt_planner.errors import IttError
 from itt_planner.sweep.solve import CONVERGED
 from itt_planner.sweep.store import ResultStore
-from itt_planner.view.report import DPI, MPS_TO_KMH, png_bytes
+from itt_planner.units import MPS_TO_KMH
+from itt_planner.view.report import DPI, png_bytes
 from itt_planner.view.report_sections import table_cell
 
 #: The inputs that identify a case apart from its labels (course, rider).

@@ -40,6 +40,7 @@ from itt_planner.errors import IttError
 from itt_planner.model.rider import PRESETS, Rider
 from itt_planner.model.wprime import WPrimeModel
 from itt_planner.ocp.course_settings import OcpSettings
+from itt_planner.units import MPS_TO_KMH
 
 MODELS = ("1d", "3d")
 _TOP_KEYS = {"name", "courses", "riders", "axes", "cases", "solver", "split_every_m"}
@@ -226,7 +227,7 @@ def _grid(axes: Mapping[str, Any], where: str, base: Grid) -> Grid:
         kmh = _numbers(axes["wind_kmh"], f"{where}.wind_kmh")
         if min(kmh) < 0:
             raise SweepSpecError(f"{where}.wind_kmh: wind speeds must be >= 0, got {kmh}")
-        changes["wind_speeds_mps"] = tuple(v / 3.6 for v in kmh)
+        changes["wind_speeds_mps"] = tuple(v / MPS_TO_KMH for v in kmh)
     if "wind_from_deg" in axes:
         changes["wind_from_rad"] = tuple(math.radians(v % 360.0) for v in
                                          _numbers(axes["wind_from_deg"], f"{where}.wind_from_deg"))

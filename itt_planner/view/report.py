@@ -31,10 +31,10 @@ from itt_planner.course.geometry import Corner, Course
 from itt_planner.errors import IttError
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.plan import Plan
+from itt_planner.units import MPS_TO_KMH
 from itt_planner.view.report_sections import ReportSection, section_html, table_cell
 from itt_planner.view.ride_report import BeliefEvent, RideTrace, actual_finish_s, belief_events
 
-MPS_TO_KMH = 3.6
 #: Road shown before the entry and after the exit of a corner close-up (m).
 CORNER_MARGIN_M = 60.0
 #: Colour of everything the rider actually did (the Rerun recording's 'actual' orange).

@@ -29,9 +29,10 @@ from itt_planner.live.samples import GpsFix, Sample
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
 from itt_planner.ocp.plan import Plan
+from itt_planner.units import MPS_TO_KMH
 from itt_planner.view import rerun_paths as paths
 from itt_planner.view import rerun_scene as scene
-from itt_planner.view.rerun_paths import DISTANCE_TIMELINE, MPS_TO_KMH, RIDE_TIMELINE
+from itt_planner.view.rerun_paths import DISTANCE_TIMELINE, RIDE_TIMELINE
 from itt_planner.view.rerun_scene import GREEN, ORANGE, PLAN_SERIES, RED, thin
 
 #: Stamps from this value on are POSIX seconds (after 2001-09-09), below: a relative clock.

@@ -48,6 +48,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from itt_planner.live.samples import PowerReading, WheelSpeed
+from itt_planner.units import MPS_TO_KMH
 
 RIDE_TIMELINE = "ride_time"
 DISTANCE_TIMELINE = "distance_m"
@@ -114,10 +115,6 @@ PLOT_ROWS: tuple[tuple[tuple[Panel, ...], float], ...] = (
       Panel(SOLVE_TIME, "Replan solve time (ms)")), 2.0),
     ((Panel(ELEVATION, "Elevation (m)"),), 2.0),
 )
-
-#: Display unit of speeds (the edge: km/h).
-MPS_TO_KMH = 3.6
-
 
 @dataclass(frozen=True)
 class SampleSeries:

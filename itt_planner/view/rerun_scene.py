@@ -15,9 +15,10 @@ import rerun as rr
 from itt_planner.course.geometry import Course
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.plan import Plan
+from itt_planner.units import MPS_TO_KMH
 from itt_planner.view import rerun_paths as paths
 from itt_planner.view.rerun_blueprint import default_blueprint, fit_map_zoom
-from itt_planner.view.rerun_paths import DISTANCE_TIMELINE, MPS_TO_KMH
+from itt_planner.view.rerun_paths import DISTANCE_TIMELINE
 
 #: Geometry logged once (course, ribbon, plan line) is thinned to this many points.
 MAX_STATIC_POINTS = 5000

@@ -27,10 +27,10 @@ from itt_planner.errors import IttError
 from itt_planner.live.advice import Advice, Diagnostic, Level
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.model.state import RiderState
+from itt_planner.units import MPS_TO_KMH
 from itt_planner.view import rerun_paths as paths
 from itt_planner.view.rerun_blueprint import default_blueprint
 from itt_planner.view.rerun_log import MAX_HORIZON_POINTS, TRACK_SEGMENT, RideRecorder
-from itt_planner.view.rerun_paths import MPS_TO_KMH
 from itt_planner.view.rerun_sink import RerunSink, open_recording
 
 
