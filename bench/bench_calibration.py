@@ -24,6 +24,7 @@ from support.real_data import RIDES, locate
 
 from itt_planner.calibration import CalibrationError, CalibrationOptions, calibrate
 from itt_planner.calibration.calibrate import CalibrationResult
+from itt_planner.calibration.physics_check import unmodelled_lines
 from itt_planner.calibration.ride_data import air_density_kgpm3
 from itt_planner.calibration.validate import validate_ride
 from itt_planner.course.geometry import Course
@@ -101,11 +102,13 @@ def _print_row(path: Path, row: dict[str, Any], fit: CalibrationResult) -> None:
           + (f"; a_y {fit.cornering.max_lateral_accel_mps2:.2f} m/s^2" if fit.cornering
              else ""))
     for ph in row.get("physics", []):
+        inputs = {k: v for k, v in ph.get("ride_inputs", {}).items() if k != "sheltered"}
         print(f"    {ph['model']} ({ph['conditions']}): finish {ph['finish_error_pct']:+.2f} %,"
               f" MAE {ph['mae_kmh']} RMSE {ph['rmse_kmh']} bias {ph['bias_kmh']} km/h, "
               f"{100 * ph['share_within_2kmh']:.0f} % within 2 km/h, floor "
-              f"{ph['noise_floor_kmh']} km/h"
-              + (f"; ride's inputs {ph['ride_inputs']}" if "ride_inputs" in ph else ""))
+              f"{ph['noise_floor_kmh']} km/h" + (f"; ride's inputs {inputs}" if inputs else ""))
+        for line in unmodelled_lines(ph):
+            print(f"        {line}")
     for key in ("physics_3d", "validate_refused"):
         if key in row:
             print(f"    {key}: {row[key]}")

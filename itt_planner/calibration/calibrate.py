@@ -19,6 +19,7 @@ from typing import Any, cast
 
 from itt_planner.calibration.aero import AeroFit, AeroSettings, fit_aero
 from itt_planner.calibration.cornering import CorneringFit, fit_cornering
+from itt_planner.calibration.elevation_check import check_ride_altitude
 from itt_planner.calibration.power_curve import CpFit, fit_cp, mmp_curve
 from itt_planner.calibration.ride_data import (
     CalibrationError,
@@ -166,6 +167,8 @@ def calibrate(rides: Sequence[str | Path | Recording],
                             setup_of_ride=tuple(result.setup_of_ride)
                             if len(result.setup_names) > 1 else ())
     try:
+        for ride in series:
+            check_ride_altitude(ride)
         result.aero = fit_aero(series, settings)
     except CalibrationError as err:
         result.refusals["aero"] = str(err)

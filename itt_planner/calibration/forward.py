@@ -4,9 +4,11 @@ The 1D model (model.md section 6, `model.build_1d`) is integrated in space with 
 project's own RK4 interval (`model.rk4_step`): at each grid interval the normalised
 power `W_n` is set to the ride's power there (`W_n = P / W_max`) and the speed is
 carried over. The ride's other inputs (`ride_inputs`, on by default): where the ride
-braked, the model's braking control `W_n < 0` inferred from the ride replaces the
-power; after a stop the replay restarts from the ride's state; launches from a
-standstill and recording gaps take the ride's own figures. The result is the speed the
+braked, the model brakes as a rider does, for a speed: down to the ride's speed there,
+with at most the braking command `W_n < 0` inferred from the ride, and not at all if it
+is already slower (a force by place would slow a model that is behind the ride by the
+same force again); after a stop the replay restarts from the ride's state; launches
+from a standstill and recording gaps take the ride's own figures. The result is the speed the
 model predicts at every place and the time it takes, to be compared with the ride.
 
 The 3D model is replayed through the project's virtual rider (`simulate.simulate_ride`,
@@ -28,6 +30,7 @@ import numpy as np
 from itt_planner.calibration.ride_data import CalibrationError
 from itt_planner.calibration.ride_inputs import LAUNCH_MPS, ride_inputs
 from itt_planner.calibration.ride_on_course import RideOnCourse
+from itt_planner.calibration.shelter import find_shelter
 from itt_planner.course.geometry import Course, detect_corners
 from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.model.dynamics import build_1d, rk4_step
@@ -56,7 +59,8 @@ class ForwardRun:
     s_m: np.ndarray
     v_mps: np.ndarray
     t_s: np.ndarray
-    ride_inputs: dict[str, float | int] | None = None
+    ride_inputs: dict[str, Any] | None = None
+    sheltered: np.ndarray | None = None
 
     @property
     def finish_time_s(self) -> float:
@@ -87,6 +91,7 @@ def forward_1d(course: Course, rider: Rider, ride: RideOnCourse,
         label += ", ride's braking and stops"
     v = np.empty(len(s))
     t = np.zeros(len(s))
+    unbraked = np.zeros(len(s) - 1, bool)
     v[0] = max(float(ride.v_mps[0]), 1.0)
     x = np.array([v[0], w_n[0], 1.0])
     for k in range(len(s) - 1):
@@ -96,10 +101,15 @@ def forward_1d(course: Course, rider: Rider, ride: RideOnCourse,
             x[0] = v[k + 1] = max(float(ride.v_mps[k + 1]), 0.5)
             t[k + 1] = t[k] + float(ride.moving_dt_s()[k])
             continue
-        x[1] = w_cell[k]
         road = [float(kappa[k]), float(beta[k]), float(theta[k]), float(s[k + 1] - s[k])]
-        xf, dt, _ = step(x, 0.0, road, par)
-        x = np.asarray(xf).ravel()
+        if inputs is not None and inputs.brake_w_n[k] < 0:
+            x, dt, skipped = _brake_to(step, x, road, par, float(inputs.brake_w_n[k]),
+                                       float(ride.v_mps[k + 1]))
+            unbraked[k] = skipped
+        else:
+            x[1] = w_cell[k]
+            xf, dt, _ = step(x, 0.0, road, par)
+            x = np.asarray(xf).ravel()
         # The model has no stop: a ride that stalls on a wall is not this model's ride.
         x[0] = max(x[0], 0.5)
         x[2] = 1.0  # W' balance plays no part in replaying measured power
@@ -107,7 +117,35 @@ def forward_1d(course: Course, rider: Rider, ride: RideOnCourse,
             x[0] = max(float(ride.v_mps[k + 1]), 1.0)  # waits, restarts as the ride did
         v[k + 1] = x[0]
         t[k + 1] = t[k] + float(dt)
-    return ForwardRun("1d", label, s, v, t, None if inputs is None else inputs.summary(ride))
+    if inputs is None:
+        return ForwardRun("1d", label, s, v, t)
+    shelter = find_shelter(model, course, rider, ride, conditions, inputs.unexplained_w)
+    summary = {**inputs.summary(ride), **shelter.summary(),
+               "braking_not_needed_m": round(float(np.diff(s)[unbraked].sum()), 1)}
+    return ForwardRun("1d", label, s, v, t, summary, shelter.mask)
+
+
+def _brake_to(step: Any, x: np.ndarray, road: list[float], par: np.ndarray, brake_w_n: float,
+              target_mps: float) -> tuple[np.ndarray, float, bool]:
+    """One interval where the ride braked: the model brakes, as a rider does, for the
+    ride's speed at the interval's end, with at most the ride's braking command. Already
+    at or below it coasting: it does not brake (returns True: braking not needed). The
+    command is interpolated in v^2 (linear in W_n over one short interval: the braking
+    force is), so the end speed lands on the ride's."""
+    x = x.copy()
+    x[1] = 0.0
+    xc, dtc, _ = step(x, 0.0, road, par)
+    v_coast = float(np.asarray(xc).ravel()[0])
+    if v_coast <= target_mps:
+        return np.asarray(xc).ravel(), float(dtc), True
+    x[1] = brake_w_n
+    xb, dtb, _ = step(x, 0.0, road, par)
+    v_brake = float(np.asarray(xb).ravel()[0])
+    if v_brake >= target_mps:
+        return np.asarray(xb).ravel(), float(dtb), False
+    x[1] = brake_w_n * (v_coast ** 2 - target_mps ** 2) / (v_coast ** 2 - v_brake ** 2)
+    xf, dt, _ = step(x, 0.0, road, par)
+    return np.asarray(xf).ravel(), float(dt), False
 
 
 def _from(course: Course, s0: float) -> Course:
@@ -148,7 +186,8 @@ def forward_3d(course: Course, rider: Rider, ride: RideOnCourse,
     own = np.ones(len(ride.s_m) - 1, bool)
     own[int(rolling[0]):last] = False
     advised = np.full(len(ride.s_m), _NO_SPEED_LIMIT_MPS)
-    inputs = ride_inputs(build_1d(), course, rider, ride, conditions) if ride_brakes else None
+    model = build_1d()
+    inputs = ride_inputs(model, course, rider, ride, conditions) if ride_brakes else None
     if inputs is not None:
         own |= inputs.stop | inputs.unseen | inputs.launch
         braked = np.concatenate([inputs.brake_w_n < 0, [False]])
@@ -174,11 +213,15 @@ def forward_3d(course: Course, rider: Rider, ride: RideOnCourse,
                                "course climbs more than the ride's power carries it, and its "
                                "lean loop is unstable at walking pace)")
     ds = np.diff(ride.s_m)
-    summary: dict[str, float | int] = dict(inputs.summary(ride)) if inputs is not None else {}
+    summary: dict[str, Any] = {}
+    mask = None
+    if inputs is not None:
+        shelter = find_shelter(model, course, rider, ride, conditions, inputs.unexplained_w)
+        summary, mask = {**inputs.summary(ride), **shelter.summary()}, shelter.mask
     summary.update(replayed_m=round(to_replay - stalled, 1),
                    ride_own_m=round(float(ds[own].sum()) + stalled, 1))
     t = np.concatenate([[0.0], np.cumsum(dt)])
-    return ForwardRun("3d", label, ride.s_m, v, t, summary)
+    return ForwardRun("3d", label, ride.s_m, v, t, summary, mask)
 
 
 def _runs(mask: np.ndarray, s_m: np.ndarray) -> list[tuple[int, int]]:

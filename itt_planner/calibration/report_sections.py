@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from itt_planner.calibration.figures import validation_figures
+from itt_planner.calibration.physics_check import unmodelled_lines
 from itt_planner.calibration.plan_check import plan_check
 from itt_planner.calibration.rider_file import CalibratedRiderFile
 from itt_planner.calibration.validate import Validation, validate_ride
@@ -69,7 +70,7 @@ def _physics_line(p: dict[str, Any]) -> str:
             f"({p['finish_error_pct']:+.2f} %); speed MAE {p['mae_kmh']}, RMSE {p['rmse_kmh']}, "
             f"bias {p['bias_kmh']:+} km/h (noise floor {p['noise_floor_kmh']}); "
             f"{100 * p['share_within_2kmh']:.0f} % of the distance within +-2 km/h"
-            + _unexplained_text(p))
+            + _unexplained_text(p) + "".join(f"; {line}" for line in unmodelled_lines(p)))
 
 
 def three_d_gain(physics: list[dict[str, Any]]) -> str | None:

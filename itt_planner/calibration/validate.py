@@ -17,13 +17,14 @@ import numpy as np
 
 from itt_planner.calibration.aero import fit_day_wind, wind_meteo
 from itt_planner.calibration.calibrate import CalibrationOptions, calibrate, load_rides
+from itt_planner.calibration.elevation_check import check_course_elevation
 from itt_planner.calibration.forward import ForwardRun, forward_1d, forward_3d
 from itt_planner.calibration.physics_check import physics_check
 from itt_planner.calibration.plan_check import plan_check
 from itt_planner.calibration.ride_data import CalibrationError, RideSeries
 from itt_planner.calibration.ride_on_course import RideOnCourse, ride_on_course
 from itt_planner.course.geometry import Course
-from itt_planner.model.conditions import Conditions
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.model.rider import Rider
 
 log = logging.getLogger(__name__)
@@ -66,11 +67,14 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
     property of the rider. Without enough steady stretches only still air is run.
 
     Raises:
-        CalibrationError: the ride is unusable or does not lie on `course`.
+        CalibrationError: the ride is unusable or does not lie on `course`, or the
+            course's elevation disagrees with itself where it passes a place twice
+            (`elevation_check`: a drifting altimeter's profile).
         SolveError: a plan could not be set up (a plan that does not converge is
             checked anyway and says so: `converged: false`).
     """
     series = ride if isinstance(ride, RideSeries) else load_rides([ride], temperature_c)[0]
+    check_course_elevation(course, series.source)
     on_course = ride_on_course(series, course)
     conditions = ride_conditions(series)
     wind_note: dict[str, Any] = {}
@@ -105,7 +109,8 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
             runs.append(forward_3d(course, rider, on_course, day, day_label))
         except CalibrationError as err:
             figures["physics_3d"] = str(err)
-    figures["physics"] = [physics_check(run, on_course, course) for run in runs]
+    grip = day.mu_y * GRAVITY_MPS2
+    figures["physics"] = [physics_check(run, on_course, course, grip) for run in runs]
     plans = []
     if plan_models:
         from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415

@@ -99,13 +99,18 @@ def _human_validation(r: dict[str, Any]) -> str:
 def validation_lines(r: dict[str, Any]) -> list[str]:
     """A validation's physics and plan checks (`Validation.figures`), a line each, as
     `validate` and `report` print them."""
-    lines = [f"  physics {p['model']} ({p['conditions']}): finish {p['finish_s']} s vs "
-             f"{p['ride_moving_s']} s ({p['finish_error_pct']:+.2f} %), speed MAE "
-             f"{p['mae_kmh']} RMSE {p['rmse_kmh']} bias {p['bias_kmh']} km/h, "
-             f"{100 * p['share_within_2kmh']:.0f} % within 2 km/h; noise floor "
-             f"{p['noise_floor_kmh']} km/h"
-             + (f"; ride's inputs {p['ride_inputs']}" if "ride_inputs" in p else "")
-             for p in r["physics"]]
+    from itt_planner.calibration.physics_check import unmodelled_lines  # noqa: PLC0415
+
+    lines = []
+    for p in r["physics"]:
+        inputs = {k: v for k, v in p.get("ride_inputs", {}).items() if k != "sheltered"}
+        lines.append(f"  physics {p['model']} ({p['conditions']}): finish {p['finish_s']} s vs "
+                     f"{p['ride_moving_s']} s ({p['finish_error_pct']:+.2f} %), speed MAE "
+                     f"{p['mae_kmh']} RMSE {p['rmse_kmh']} bias {p['bias_kmh']} km/h, "
+                     f"{100 * p['share_within_2kmh']:.0f} % within 2 km/h; noise floor "
+                     f"{p['noise_floor_kmh']} km/h"
+                     + (f"; ride's inputs {inputs}" if inputs else ""))
+        lines += [f"    {line}" for line in unmodelled_lines(p)]
     if "physics_3d" in r:
         lines.append(f"  physics 3d: {r['physics_3d']}")
     lines += [f"  plan {p['model']} [{p['solver_status']}]: {p['plan_finish_s']} s vs ride "

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from itt_planner.calibration.forward import forward_1d
+from itt_planner.calibration.physics_check import physics_check
 from itt_planner.calibration.ride_inputs import (
     BRAKE_MARGIN_MPS2,
     LAUNCH_MPS,
@@ -20,6 +21,7 @@ from itt_planner.calibration.ride_inputs import (
     ride_inputs,
 )
 from itt_planner.calibration.ride_on_course import RideOnCourse
+from itt_planner.calibration.shelter import SHELTER_MIN_M, SHELTER_SHARE
 from itt_planner.course.builder import build_course
 from itt_planner.course.geometry import Course
 from itt_planner.model.conditions import Conditions
@@ -130,3 +132,57 @@ def test_unexplained_power_is_what_the_model_lacks(course: Course) -> None:
     assert np.average(inputs.unexplained_w[used], weights=1 / v[used]) == pytest.approx(
         np.average(missing[used], weights=1 / v[used]), rel=0.05)
     assert inputs.summary(ride)["unexplained_mean_w"] > 10.0
+
+
+def test_braking_only_down_to_the_ride_speed(course: Course) -> None:
+    """A rider brakes for a speed: a replay slower than the ride where the ride braked
+    coasts instead of braking further below it (the braking is counted as not needed),
+    and one faster than the ride brakes for the ride's speed, with at most the ride's
+    command (issue 15: the 1D replay braked by place, however slow it already was)."""
+    ride = _truth_ride(course)
+    mid = 0.5 * (ride.s_m[1:] + ride.s_m[:-1])
+    zone = np.flatnonzero((mid > BRAKE_FROM_M) & (mid < BRAKE_TO_M))
+    slower = dataclasses.replace(RIDER, drag_area_m2=1.5 * RIDER.drag_area_m2)
+    run = forward_1d(course, slower, ride)
+    assert run.ride_inputs is not None and run.ride_inputs["braking_not_needed_m"] > 0
+    assert run.v_mps[zone[0]] < ride.v_mps[zone[0]]
+    # Never below both the ride's speed and its own coasting (the power-only replay: the
+    # ride's power is 0 over the zone, and both replays are one before it).
+    coasting = forward_1d(course, slower, ride, ride_brakes=False)
+    assert coasting.v_mps[zone[0]] == pytest.approx(run.v_mps[zone[0]])
+    floor = np.minimum(ride.v_mps[zone + 1], coasting.v_mps[zone + 1])
+    assert np.all(run.v_mps[zone + 1] >= floor - 1e-6)
+    faster = dataclasses.replace(RIDER, drag_area_m2=0.8 * RIDER.drag_area_m2)
+    fast = forward_1d(course, faster, ride)
+    assert fast.v_mps[zone[0]] > ride.v_mps[zone[0]]
+    # Braked toward the ride's speed, never below it.
+    assert np.all(fast.v_mps[zone + 1] >= ride.v_mps[zone + 1] - 1e-3)
+    power_only = forward_1d(course, faster, ride, ride_brakes=False)
+    assert fast.v_mps[zone[-1] + 1] < power_only.v_mps[zone[-1] + 1] - 1.0
+
+
+def test_sheltered_stretch_found_and_reported(course: Course) -> None:
+    """The model's own ride, recorded with 130 W less than it rode at over 1000 m of the
+    flat (the help a wheel to follow gives): that stretch, and only it, is sheltered; the
+    replay (which rides it solo with the recorded power) loses its time there, and
+    outside it finishes with the ride."""
+    truth = _truth_ride(course)
+    help_zone = (truth.s_m >= 500.0) & (truth.s_m < 1500.0)
+    ride = dataclasses.replace(truth, power_w=np.where(help_zone, truth.power_w - 130.0,
+                                                      truth.power_w))
+    run = forward_1d(course, RIDER, ride)
+    assert run.ride_inputs is not None and run.sheltered is not None
+    assert run.ride_inputs["sheltered_stretches"] == 1
+    (stretch,) = run.ride_inputs["sheltered"]
+    assert (stretch["from_m"], stretch["length_m"]) == (500.0, 1000.0)
+    assert stretch["length_m"] >= SHELTER_MIN_M and stretch["drag_share_unpaid"] > SHELTER_SHARE
+    assert stretch["unexplained_w"] == pytest.approx(130.0, rel=0.1)
+    figures = physics_check(run, ride, course)
+    (lost,) = figures["sheltered_time_lost"]
+    assert lost["model_minus_ride_s"] > 5.0
+    outside = figures["outside_sheltered"]
+    assert abs(outside["finish_error_pct"]) < abs(figures["finish_error_pct"]) / 3
+    # The model's own ride, unchanged, has none.
+    clean = forward_1d(course, RIDER, truth)
+    assert clean.ride_inputs is not None and clean.ride_inputs["sheltered_stretches"] == 0
+    assert "outside_sheltered" not in physics_check(clean, truth, course)
