@@ -32,7 +32,13 @@ from itt_planner.errors import IttError
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.plan import Plan
 from itt_planner.units import MPS_TO_KMH
-from itt_planner.view.report_sections import ReportSection, section_html, table_cell
+from itt_planner.view.report_sections import (
+    ReportSection,
+    draw_section,
+    section_height_in,
+    section_html,
+    table_cell,
+)
 from itt_planner.view.ride_report import BeliefEvent, RideTrace, actual_finish_s, belief_events
 
 #: Road shown before the entry and after the exit of a corner close-up (m).
@@ -332,19 +338,23 @@ def _draw_top(fig: Figure | SubFigure, plan: Plan, course: Course, rider: Rider 
 
 
 def render_png(plan: Plan, course: Course, rider: Rider | None = None,
-               settings: ReportSettings = ReportSettings(), ride: RideTrace | None = None
-               ) -> bytes:
-    """The overview and the tightest corner in one PNG."""
+               settings: ReportSettings = ReportSettings(), ride: RideTrace | None = None,
+               sections: tuple[ReportSection, ...] = ()) -> bytes:
+    """The overview, the tightest corner and `sections` (their text and images) in one PNG."""
     corners = tightest_corners(course, 1)
-    top_in = 8.0 if ride is None else 10.0
+    top_in, width_in = (8.0 if ride is None else 10.0), 11.0
+    heights = [top_in] + [4.2] * len(corners) + [section_height_in(x, width_in)
+                                                   for x in sections]
     with mpl.rc_context({"figure.constrained_layout.use": True}):
-        fig = Figure(figsize=(11, top_in + 4.2 * len(corners)))
+        fig = Figure(figsize=(width_in, sum(heights)))
         # squeeze=False: always an array of subfigures (one column), even for one row.
-        top, *rest = fig.subfigures(1 + len(corners), 1, squeeze=False,
-                                    height_ratios=[top_in] + [4.2] * len(corners))[:, 0]
+        top, *rest = fig.subfigures(len(heights), 1, squeeze=False,
+                                    height_ratios=heights)[:, 0]
         _draw_top(top, plan, course, rider, ride)
-        for sub, corner in zip(rest, corners, strict=True):
+        for sub, corner in zip(rest, corners, strict=False):
             draw_corner(sub, plan, course, corner, settings.corner_margin_m, ride)
+        for sub, section in zip(rest[len(corners):], sections, strict=True):
+            draw_section(sub, section, width_in)
         return png_bytes(fig, settings.dpi)
 
 
@@ -353,7 +363,7 @@ def write_report(plan: Plan, course: Course, output: str | Path, rider: Rider | 
                  sections: tuple[ReportSection, ...] = ()) -> Path:
     """Write the report as HTML (`.html`/`.htm`) or PNG (`.png`), by the output's suffix.
 
-    `sections` go into the HTML only (the PNG is the overview and a corner).
+    `sections` follow the figures in both (the PNG draws their text and images).
 
     Raises:
         IttError: another suffix, the plan is not on this course, or the file cannot be written.
@@ -369,7 +379,7 @@ def write_report(plan: Plan, course: Course, output: str | Path, rider: Rider | 
             output.write_text(render_html(plan, course, rider, settings, ride, sections),
                               encoding="utf-8")
         elif suffix == ".png":
-            output.write_bytes(render_png(plan, course, rider, settings, ride))
+            output.write_bytes(render_png(plan, course, rider, settings, ride, sections))
         else:
             raise IttError(f"{output}: report must be .html or .png")
     except OSError as err:
