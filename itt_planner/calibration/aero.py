@@ -37,6 +37,7 @@ from scipy.optimize import least_squares
 
 from itt_planner.calibration.aero_design import Design, Selection, design
 from itt_planner.calibration.ride_data import CalibrationError, RideSeries
+from itt_planner.units import MPS_TO_KMH
 
 #: CdA outside this band is no rider on a bicycle (m^2): refused, not reported.
 PHYSICAL_CDA_M2 = (0.15, 0.60)
@@ -124,7 +125,7 @@ class AeroFit:
                 "crr": round(self.crr, 5), "crr_std": round(self.crr_std, 5),
                 "crr_fixed": self.crr_fixed, "crr_note": self.crr_note,
                 "wind": [{"speed_kmh": round(k, 1), "from_deg": round(d, 0),
-                          "std_kmh": round(3.6 * float(np.hypot(*sd)), 1)}
+                          "std_kmh": round(MPS_TO_KMH * float(np.hypot(*sd)), 1)}
                          for (k, d), sd in zip(winds, self.wind_std_mps, strict=True)],
                 "used_s": round(self.used_s, 1), "n_stretches": self.n_stretches,
                 "virtual_elevation_rmse_m": round(self.rmse_m, 2),
@@ -137,7 +138,7 @@ def wind_meteo(wind_enu_mps: np.ndarray) -> tuple[float, float]:
     """(speed km/h, direction FROM in degrees clockwise from North) of an ENU wind
     (where the air moves TO): the units of `Conditions.from_meteo`."""
     e, n = float(wind_enu_mps[0]), float(wind_enu_mps[1])
-    return 3.6 * math.hypot(e, n), math.degrees(math.atan2(-e, -n)) % 360.0
+    return MPS_TO_KMH * math.hypot(e, n), math.degrees(math.atan2(-e, -n)) % 360.0
 
 
 class _Problem:

@@ -20,6 +20,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from itt_planner.calibration.ride_data import CalibrationError
+from itt_planner.units import MPS_TO_KMH
 from itt_planner.view.report import png_bytes
 
 if TYPE_CHECKING:
@@ -78,9 +79,10 @@ def calibration_figures(result: CalibrationResult) -> list[str]:
             fig = Figure(figsize=(11, 4))
             ax = fig.subplots()
             r = np.array([k.radius_m for k in c.corners])
-            ax.plot(r, [3.6 * k.speed_mps for k in c.corners], "ko", ms=4, label="apex speed")
+            ax.plot(r, [MPS_TO_KMH * k.speed_mps for k in c.corners], "ko", ms=4,
+                    label="apex speed")
             grid = np.linspace(max(r.min() * 0.8, 1.0), r.max() * 1.2, 100)
-            ax.plot(grid, 3.6 * np.sqrt(c.max_lateral_accel_mps2 * grid), "tab:red",
+            ax.plot(grid, MPS_TO_KMH * np.sqrt(c.max_lateral_accel_mps2 * grid), "tab:red",
                     label=f"a_y = {c.max_lateral_accel_mps2:.2f} m/s^2")
             ax.set_xlabel("corner radius (m)")
             ax.set_ylabel("speed (km/h)")
@@ -96,9 +98,10 @@ def validation_figures(val: Validation) -> list[str]:
     with mpl.rc_context({"figure.constrained_layout.use": True}):
         fig = Figure(figsize=(11, 4))
         ax = fig.subplots()
-        ax.plot(s, 3.6 * val.on_course.v_mps, color="0.4", lw=1, label="ride (5 s)")
+        ax.plot(s, MPS_TO_KMH * val.on_course.v_mps, color="0.4", lw=1, label="ride (5 s)")
         for run in val.runs:
-            ax.plot(s, 3.6 * run.v_mps, lw=1, label=f"{run.model} ({run.label}), ride's power")
+            ax.plot(s, MPS_TO_KMH * run.v_mps, lw=1,
+                    label=f"{run.model} ({run.label}), ride's power")
         ax.set_xlabel("distance (km)")
         ax.set_ylabel("speed (km/h)")
         ax.legend()
@@ -106,8 +109,8 @@ def validation_figures(val: Validation) -> list[str]:
         for plan in val.plans:
             fig = Figure(figsize=(11, 5))
             ax_v, ax_p = fig.subplots(2, 1, sharex=True)
-            ax_v.plot(s, 3.6 * val.on_course.v_mps, color="0.4", lw=1, label="ride")
-            ax_v.plot(plan.s_m / 1000, 3.6 * plan.v_mps, lw=1, label=f"plan {plan.model}")
+            ax_v.plot(s, MPS_TO_KMH * val.on_course.v_mps, color="0.4", lw=1, label="ride")
+            ax_v.plot(plan.s_m / 1000, MPS_TO_KMH * plan.v_mps, lw=1, label=f"plan {plan.model}")
             ax_v.set_ylabel("speed (km/h)")
             ax_v.legend()
             ax_p.plot(s, val.on_course.power_w, color="0.4", lw=0.6, label="ride")

@@ -24,6 +24,7 @@ from itt_planner.calibration.forward import ForwardRun
 from itt_planner.calibration.ride_on_course import RideOnCourse
 from itt_planner.course.geometry import Course
 from itt_planner.model.conditions import GRAVITY_MPS2
+from itt_planner.units import MPS_TO_KMH
 
 #: Band of the "share within" figure (km/h).
 BAND_KMH = 2.0
@@ -44,7 +45,7 @@ def physics_check(run: ForwardRun, ride: RideOnCourse, course: Course,
                   grip_mps2: float = GRAVITY_MPS2) -> dict[str, Any]:
     """The figures of the module docstring for one model run (`grip_mps2`: the road's
     lateral grip, `mu_y g` of the conditions)."""
-    err = 3.6 * (run.v_mps - ride.v_mps)
+    err = MPS_TO_KMH * (run.v_mps - ride.v_mps)
     real = ride.moving_time_s
     out: dict[str, Any] = {
         "model": run.model, "conditions": run.label,
@@ -70,8 +71,8 @@ def physics_check(run: ForwardRun, ride: RideOnCourse, course: Course,
         if inside.sum() < 2:
             continue
         corners.append({"apex_s_m": round(c.apex_s_m, 1), "radius_m": round(c.min_radius_m, 1),
-                        "ride_min_kmh": round(3.6 * float(ride.v_mps[inside].min()), 1),
-                        "model_min_kmh": round(3.6 * float(run.v_mps[inside].min()), 1),
+                        "ride_min_kmh": round(MPS_TO_KMH * float(ride.v_mps[inside].min()), 1),
+                        "model_min_kmh": round(MPS_TO_KMH * float(run.v_mps[inside].min()), 1),
                         **_speed_figures(err[inside])})
     out["per_corner"] = corners
     return out
@@ -117,8 +118,8 @@ def _beyond_grip_figures(run: ForwardRun, ride: RideOnCourse, course: Course,
         corners.append({"apex_km": round(c.apex_s_m / 1000.0, 3),
                         "radius_m": round(c.min_radius_m, 1),
                         "ride_lateral_accel_mps2": round(float(a_y.max()), 1),
-                        "ride_min_kmh": round(3.6 * float(ride.v_mps[inside].min()), 1),
-                        "model_min_kmh": round(3.6 * float(run.v_mps[inside].min()), 1)})
+                        "ride_min_kmh": round(MPS_TO_KMH * float(ride.v_mps[inside].min()), 1),
+                        "model_min_kmh": round(MPS_TO_KMH * float(run.v_mps[inside].min()), 1)})
     if not corners:
         return {}
     lost = np.diff(run.t_s) - ride.moving_dt_s()

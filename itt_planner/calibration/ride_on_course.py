@@ -17,6 +17,7 @@ import numpy as np
 from itt_planner.calibration.matching import course_progress
 from itt_planner.calibration.ride_data import MOVING_MPS, CalibrationError, RideSeries, smooth
 from itt_planner.course.geometry import Course
+from itt_planner.units import MPS_TO_KMH
 
 #: Window of the smoothed ride speed the models are compared with (samples, 1 Hz).
 SMOOTH_SAMPLES = 5
@@ -52,7 +53,7 @@ class RideOnCourse:
         """MAE of the raw GPS speed against the smoothed ride speed (km/h): no model can
         be judged closer to the ride than its own sensors agree."""
         good = np.isfinite(self.v_raw_gps_mps)
-        return float(3.6 * np.mean(np.abs(self.v_raw_gps_mps[good] - self.v_mps[good])))
+        return float(MPS_TO_KMH * np.mean(np.abs(self.v_raw_gps_mps[good] - self.v_mps[good])))
 
 
 def ride_on_course(ride: RideSeries, course: Course, step_m: float = 5.0) -> RideOnCourse:

@@ -32,6 +32,7 @@ from itt_planner.course.geometry import Course
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.dynamics import SpatialModel
 from itt_planner.model.rider import Rider
+from itt_planner.units import MPS_TO_KMH
 
 #: Share of the model's air drag the ride did not pay, above which a window is sheltered.
 SHELTER_SHARE = 0.3
@@ -96,7 +97,7 @@ def find_shelter(model: SpatialModel, course: Course, rider: Rider, ride: RideOn
         stretches.append({
             "from_m": round(float(s[i0]), 1), "length_m": round(float(s[i1] - s[i0]), 1),
             "ride_s": round(float(ride.t_moving_s[i1] - ride.t_moving_s[i0]), 1),
-            "ride_kmh": round(3.6 * float(ds[i0:i1].sum() / dt.sum()), 1),
+            "ride_kmh": round(MPS_TO_KMH * float(ds[i0:i1].sum() / dt.sum()), 1),
             "ride_power_w": round(float(np.sum(0.5 * (ride.power_w[i0:i1] + ride.power_w[
                 i0 + 1:i1 + 1]) * dt) / dt.sum()), 0),
             "unexplained_w": round(u, 0),
