@@ -101,6 +101,7 @@ def validation_section(val: Validation) -> ReportSection:
     rows: dict[str, object] = {
         "ride": f["ride"], "rider": f"{f['rider']} ({f['rider_values']})",
         "covered_km": round(f["covered_m"] / 1000, 2), "matched_share": f["matched_share"],
+        "ride_speed_x_time_over_course_length": f.get("speed_distance_ratio", "-"),
         "air_density_kgpm3": f["air_density_kgpm3"], "day_wind": f["day_wind"] or "-"}
     for p in f["physics"]:
         rows[f"physics {p['model']} ({p['conditions']})"] = _physics_line(p)

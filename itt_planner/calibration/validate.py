@@ -101,6 +101,11 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
         "rider_values": _rider_values(rider),
         "matched_share": round(on_course.matched_share, 3),
         "covered_m": round(float(on_course.s_m[-1] - on_course.s_m[0]), 1),
+        # The ride's speed x moving time over the course's length: a speed sensor (or a
+        # course length) off by this scales every replay's finish by it.
+        "speed_distance_ratio": round(float(np.sum(on_course.v_mps[:-1]
+                                                   * on_course.moving_dt_s())
+                                            / (on_course.s_m[-1] - on_course.s_m[0])), 4),
         "air_density_kgpm3": round(conditions.air_density_kgpm3, 4),
         "day_wind": wind_note,
     }

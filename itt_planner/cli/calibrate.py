@@ -91,8 +91,9 @@ def _human_validation(r: dict[str, Any]) -> str:
                                              f"{h['mae_kmh']} km/h (floor {h['noise_floor_kmh']})")
             for h in r["holdout"])
     values = ", ".join(f"{k} {v}" for k, v in r["rider_values"].items())
-    head = (f"{r['ride']} on {r['course']} ({r['covered_m'] / 1000:.1f} km), rider "
-            f"{r['rider']} ({values}):")
+    head = (f"{r['ride']} on {r['course']} ({r['covered_m'] / 1000:.1f} km; the ride's speed x "
+            f"moving time / course length {r['speed_distance_ratio']}), rider {r['rider']} "
+            f"({values}):")
     return "\n".join([head, *validation_lines(r)])
 
 
