@@ -12,8 +12,10 @@ speeds `v0`, `v1` at its ends and `v = (v0 + v1)/2`:
 
 The model's braking control is `W_n < 0`, a tyre force `mu_x g m W_n` (E3, section 2 of
 model.md), so that `W_n` makes the model, at the ride's speed, slow exactly as the ride
-did; the replay applies it there in place of the ride's power (a rider does not pedal
-against the brakes; what little power the meter saw is dissipated too). The margin
+did; the replay brakes there in place of the ride's power (a rider does not pedal
+against the brakes; what little power the meter saw is dissipated too), for the ride's
+speed with at most this command (`forward`: a rider brakes for a speed, not by place).
+The margin
 keeps speed noise from reading as braking: below it a deceleration is within what the
 5 s smoothed speed differentiated over one interval scatters by (`BRAKE_MARGIN_MPS2`).
 
