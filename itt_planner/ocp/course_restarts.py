@@ -12,6 +12,14 @@ start may use `_FIRST_SHARE` of it):
   that point on that plan's mesh cut at the start; on the Zwift Bologna ride 8-22
   iterations instead of 44-116 (bench/RESULTS.md, 2026-12-01, issue 14 re-solves);
   if it does not converge, the strategies below on a mesh built for the start;
+- coarse mesh first (3D, cold, no given guess, no start, more than `_COARSE_MIN_NODES`
+  nodes): solve on every other node of the mesh (intervals up to 2 h_max_m, two RK4
+  substeps each: half the KKT system), then resume on the full mesh from that
+  primal-dual point moved onto it (`Budget.resume_at`; the fine nodes hold the coarse
+  ones, so only the new middle nodes are interpolated). The coarse run places the
+  active arcs (C11, C15, C16, W' = 0) at about half the cost per iteration, which a
+  cold start on the full mesh forms a node or two per iteration (2026-12-01, H5). If
+  the coarse run does not converge, the cold start on the full mesh as before;
 - early failure (`solver.SolveResult.gave_up_early`): the same start with a smaller
   bound push (on short courses the 3D model ended in Restoration_Failed with IPOPT's
   default push and converged in 39-64 iterations with 1e-4);
@@ -98,6 +106,14 @@ _BOUND_PUSH = 1e-2
 _RETRY_BOUND_PUSH = 1e-4
 #: Share of the budget the first start may use (the rest is for the restarts).
 _FIRST_SHARE = 0.6
+#: Coarse mesh first (module docstring): above this many nodes, and the share of the
+#: budget the coarse run may use. Bologna (4,309 nodes) converged on 2,155 nodes in 133
+#: iterations at ~0.5x the CPU per iteration, then in 79 on the full mesh, against 271-307
+#: cold (bench/RESULTS.md, 2026-12-02, helper A). Shorter courses are cheap cold, and the
+#: short technical ones have local optima a coarse mesh picks differently
+#: (descent-hairpins at double spacing: +0.27 %, 2026-12-01).
+_COARSE_MIN_NODES = 3000
+_COARSE_SHARE = 0.3
 #: Share of the budget left that a capped 3D run may use to resume (module docstring).
 _RESUME_SHARE = 0.8
 #: Share of the budget of the first run from a previous plan's primal-dual point
@@ -218,8 +234,11 @@ class CourseSolve:
         the NLP the result belongs to, and the result."""
         run, usable = self.budget.run, self.budget.usable
         cold = prob.w_guess
-        # The first start gets `_FIRST_SHARE` of the budget, so that a restart has some left.
-        res = run("guess" if self.guess is not None else "cold", prob, cold, share=_FIRST_SHARE)
+        res = self._from_coarse(prob) if self._coarse_pays(prob) else None
+        if res is None or res.status is PlanStatus.FAILED:
+            # The first start gets `_FIRST_SHARE` of the budget, so that a restart has some left.
+            res = run("guess" if self.guess is not None else "cold", prob, cold,
+                      share=_FIRST_SHARE)
         if res.gave_up_early and usable():
             res = run("smaller bound push", prob, cold, bound_push=_RETRY_BOUND_PUSH, share=0.5)
         if res.status is PlanStatus.CAPPED and self.model == "3d" and usable():
@@ -235,6 +254,24 @@ class CourseSolve:
             res = run("relaxed tolerance", prob, res.w, bound_push=_RETRY_BOUND_PUSH,
                       acceptable_tol=_RELAXED_TOL)
         return prob, res
+
+    def _coarse_pays(self, prob: CourseNlp) -> bool:
+        """A cold 3D start from the default guess on a mesh of more than
+        `_COARSE_MIN_NODES` nodes (module docstring: coarse mesh first)."""
+        return (self.model == "3d" and self.guess is None and self.start is None
+                and len(prob.nodes) > _COARSE_MIN_NODES)
+
+    def _from_coarse(self, prob: CourseNlp) -> SolveResult | None:
+        """Solve on every other node of `prob`'s mesh (and its last), then resume on
+        `prob` from that point (`Budget.resume_at`); None when the coarse run did not
+        converge (the caller then starts cold on `prob`)."""
+        nodes = np.append(prob.nodes[:-1:2], prob.nodes[-1])
+        coarse = self.nlp(nodes, None)
+        res = self.budget.run("coarse mesh", coarse, coarse.w_guess, share=_COARSE_SHARE)
+        if not res.converged or res.lam_x is None or res.lam_g is None or not self.budget.usable():
+            return None
+        point = PrimalDual(nodes, res.w, res.lam_x, res.lam_g)
+        return self.budget.resume_at("from the coarse mesh", prob, point, share=_FIRST_SHARE)
 
     def _warm_from_1d(self, prob: CourseNlp, res: SolveResult) -> SolveResult:
         """Solve the 1D plan (a third of the CPU left at most) and start from it."""

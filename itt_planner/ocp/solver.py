@@ -171,6 +171,15 @@ _HORIZON_COLD = {"mu_init": 1e-2, "mu_strategy": "monotone", "nlp_scaling_method
 #: (29 with the cap), 284 on rovereto-like at half spacing (38), and on a 9 km hilly
 #: route converged to a plan that failed its verification (63 iterations, verified, with).
 _MU_MAX_1D = 0.1
+#: MUMPS's fill-reducing ordering of the full-course KKT system: approximate minimum
+#: degree (AMD) instead of MUMPS's automatic choice. The linear solver is ~75 % of a 3D
+#: full-course iteration (IPOPT's timing statistics, Bologna 16 km, 4,309 nodes: 61 of
+#: 81 s user CPU, factorizations 2-5 per iteration for the inertia correction); on the
+#: banded multiple-shooting KKT matrix AMD factors it faster than the automatic choice,
+#: METIS, PORD, AMF or QAMD (bench/RESULTS.md, 2026-12-02, helper A). Same iterates to
+#: rounding (40 iterations: identical objective); a full run can then take another
+#: barrier path, like any change of rounding.
+_FULL_COURSE_MUMPS = {"ipopt.mumps_pivot_order": 0}
 #: Continue a run from its last primal-dual point (`course_problem`'s resume after a
 #: capped 3D run): the multipliers are passed in and kept, the barrier starts small, the
 #: point is not pushed off its bounds.
@@ -197,7 +206,8 @@ def full_course_solver(tr: Transcription, *, max_iter: int, max_cpu_time_s: floa
             "ipopt.max_cpu_time": max(max_cpu_time_s, 1.0), "ipopt.tol": tol,
             # Measured on verona-like: adaptive 75 iterations (3D) / 43 (1D), monotone 239 / >400.
             "ipopt.mu_strategy": "adaptive",
-            "ipopt.bound_push": bound_push, "ipopt.bound_frac": bound_push}
+            "ipopt.bound_push": bound_push, "ipopt.bound_frac": bound_push,
+            **_FULL_COURSE_MUMPS}
     if tr.model.name == "1d":
         opts["ipopt.mu_max"] = _MU_MAX_1D
     if acceptable_tol is not None:

@@ -29,8 +29,10 @@ once, and the full-course solver once per node count.
 Derivatives: the Lagrangian's Hessian is block diagonal (one block per stage: interval
 cost, integrator and path constraints of that stage) and the constraint Jacobian is
 block banded. Instead of letting CasADi differentiate an N-times-mapped graph (the
-prototype spent 90 % of its time there), five small per-stage kernels - the integrator,
-its Jacobian, the stage Hessian, the path constraints and the final-node Hessian - are
+prototype spent 90 % of its time there), six small per-stage kernels - the integrator,
+its Jacobian, the stage Hessian, the path constraints, the final-node Hessian and the
+cost gradient (the objective's gradient alone, called twice per iteration: with the
+integrator's Jacobian it cost as much as the constraint Jacobian) - are
 derived once, compiled to C once per machine (`codegen.compiled`), mapped over the
 stages, and their dense blocks scattered into the known sparsity patterns. IPOPT gets
 them through its `grad_f`, `jac_g` and `hess_lag` options.
@@ -152,7 +154,7 @@ _KERNELS: dict[tuple[str, int, bool], tuple[ca.Function, ...]] = {}
 
 def stage_kernels(model: SpatialModel, substeps: int, compile_c: bool = True
                   ) -> tuple[ca.Function, ...]:
-    """The five per-stage kernels (see module docstring), compiled and cached."""
+    """The six per-stage kernels (see module docstring), compiled and cached."""
     key = (model.ode.name(), substeps, compile_c)
     if key not in _KERNELS:
         _KERNELS[key] = _build_kernels(model, substeps, compile_c)
@@ -179,13 +181,13 @@ def _build_kernels(model: SpatialModel, substeps: int, compile_c: bool
              + nu_v * v_sq)
     kernels = [
         ca.Function(f"itt_F_{tag}", [x, u, road, p], [xf, dt, dj]),
-        ca.Function(f"itt_JF_{tag}", [x, u, road, p],
-                    [xf, dj, ca.densify(ca.jacobian(xf, z)), ca.densify(ca.gradient(dj, z))]),
+        ca.Function(f"itt_JF_{tag}", [x, u, road, p], [ca.densify(ca.jacobian(xf, z))]),
         ca.Function(f"itt_HK_{tag}", [x, u, road, p, sigma, lam, mu, nu_v],
                     [ca.densify(ca.hessian(lag, z)[0])]),
         ca.Function(f"itt_P_{tag}", [x, p], [g, ca.densify(ca.jacobian(g, x))]),
         ca.Function(f"itt_HN_{tag}", [x, p, sigma, mu, v_target, v_weight, nu_v],
                     [ca.densify(ca.hessian(lag_n, x)[0])]),
+        ca.Function(f"itt_GF_{tag}", [x, u, road, p], [ca.densify(ca.gradient(dj, z))]),
     ]
     if compile_c:
         return tuple(compiled(f"itt_kernels_{tag}", kernels))
@@ -329,7 +331,7 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     nx, nu, n = model.nx, model.nu, n_intervals
     lay = layout_of(model, n_intervals, soft=soft, accel_bound=accel_bound)
     nz, st = nx + nu, lay.stage
-    f_k, jf_k, hk_k, p_k, hn_k = stage_kernels(model, substeps, compile_c)
+    f_k, jf_k, hk_k, p_k, hn_k, gf_k = stage_kernels(model, substeps, compile_c)
     iv, ie = model.index("v"), model.index("e_n")
 
     # ---- decision variables, parameters, multipliers ---------------------------------
@@ -366,8 +368,7 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
         g = ca.vertcat(g_gap, ca.vec(path), g_acc[:ng_acc])
 
     # ---- gradient of f ----------------------------------------------------------------------
-    _, _, jac_z, grad_z = jf_k.map(n)(xs[:, :n], us, road, par)
-    stage_grad = [grad_z]
+    stage_grad = [gf_k.map(n)(xs[:, :n], us, road, par)]
     tail = [(term[3] + 2 * term[2] * (x_last[iv] - term[1])) * ca.DM.eye(nx)[:, iv]]
     if soft:
         stage_grad.append(slack_weight * (1 + 2 * slacks))
@@ -375,6 +376,7 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     grad_f = ca.densify(ca.vertcat(ca.vec(ca.vertcat(*stage_grad)), *tail))
 
     # ---- Jacobian of g: dense stage blocks scattered into the banded pattern -------------
+    jac_z = jf_k.map(n)(xs[:, :n], us, road, par)
     values = ca.vertcat(ca.vec(jac_z), ca.vec(path_jac), ca.MX(-1),
                         ca.vec(v_to / ds_k), ca.vec(-v_from / ds_k))
     sp_j, src_j = _csc(ng, lay.n_var, *_jacobian_pattern(lay, iv, ie, ng))
