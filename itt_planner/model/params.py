@@ -15,6 +15,7 @@ import numpy as np
 
 from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.model.rider import Rider
+from itt_planner.model.steady import drag_factor_kgpm
 
 #: Road data per integration interval: mean curvature (1/m), mean slope angle (rad),
 #: centre-line heading (rad, for the wind projection of E3), interval length (m).
@@ -44,7 +45,7 @@ class ModelParams:
         wind_e, wind_n = c.wind_enu_mps()
         return np.array([
             r.mass_kg, r.roll_inertia_kgm2, r.com_height_m,
-            0.5 * c.air_density_kgpm3 * r.drag_area_m2, r.crr, r.wheelbase_m, r.steer_max_rad,
+            drag_factor_kgpm(r, c), r.crr, r.wheelbase_m, r.steer_max_rad,
             r.power_rate_max_wps, r.steer_rate_max_radps, r.critical_power_w, r.max_power_w,
             r.w_prime_j, r.pedal_lean_max_rad, c.mu_x,
             lateral_limit_mps2(r, c) / GRAVITY_MPS2, wind_e, wind_n,

@@ -1,14 +1,27 @@
-"""Steady-state speeds of the E3 power balance (numeric, no CasADi): the speed a power
-holds on a grade (`steady_speed_mps`, for guesses and checks) and an upper bound on the
-speed of any physical ride of a course (`speed_bound_mps`, a simple bound of the OCPs).
+"""The E3 power balance in numbers (no CasADi): its drag factor and resistance, the
+speed a power holds on a grade (`steady_speed_mps`, for guesses and checks) and an upper
+bound on the speed of any physical ride of a course (`speed_bound_mps`, a simple bound of
+the OCPs). The symbolic E3 is `model.dynamics`; these are its numeric twins.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.model.rider import Rider
+
+
+def drag_factor_kgpm(rider: Rider, conditions: Conditions) -> float:
+    """`k_v = rho CdA / 2` (kg/m): the air drag of E3 is `k_v v_air |v_air|`."""
+    return 0.5 * conditions.air_density_kgpm3 * rider.drag_area_m2
+
+
+def resistance_n(v: Any, sin_b: Any, cos_b: Any, rider: Rider, k_v: float) -> Any:
+    """Rolling, gravity and air resistance (N) at speed `v` in still air (E3); numbers or
+    arrays alike (`sin_b`, `cos_b`: of the slope angle; `k_v`: `drag_factor_kgpm`)."""
+    return rider.mass_kg * GRAVITY_MPS2 * (rider.crr * cos_b + sin_b) + k_v * v * v
 
 
 def steady_speed_mps(power_w: float, rider: Rider, conditions: Conditions = Conditions(),
@@ -33,7 +46,7 @@ def steady_speed_mps(power_w: float, rider: Rider, conditions: Conditions = Cond
         raise ValueError(f"steady speed needs a power >= 0 W and a finite grade, got "
                          f"{power_w!r} W at {grade!r}")
     beta = math.atan(grade)
-    k_v = 0.5 * conditions.air_density_kgpm3 * rider.drag_area_m2
+    k_v = drag_factor_kgpm(rider, conditions)
     a = rider.mass_kg * GRAVITY_MPS2 * (rider.crr * math.cos(beta) + math.sin(beta)) / k_v
     b = -rider.drivetrain_efficiency * power_w / k_v
     disc = (b / 2) ** 2 + (a / 3) ** 3

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -29,7 +28,7 @@ from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.model.dynamics import CONTROLS_1D, STATES_1D, SpatialModel
 from itt_planner.model.params import lateral_limit_mps2
 from itt_planner.model.rider import Rider
-from itt_planner.model.steady import steady_speed_mps
+from itt_planner.model.steady import drag_factor_kgpm, resistance_n, steady_speed_mps
 from itt_planner.model.wprime import e_n_rate
 from itt_planner.ocp.bounds import U_DELTA_MAX, U_W_MAX, V_MIN_MPS
 from itt_planner.ocp.mesh import speed_spacing_m
@@ -108,12 +107,6 @@ def initial_guess(model: SpatialModel, course: Course, nodes: np.ndarray, rider:
     return x, np.zeros((model.nu, len(nodes) - 1))
 
 
-def _resistance_n(v: Any, sin_b: Any, cos_b: Any, rider: Rider, k_v: float) -> Any:
-    """Rolling, gravity and air resistance (N) at speed `v` (E3 without wind); numbers
-    or arrays alike."""
-    return rider.mass_kg * GRAVITY_MPS2 * (rider.crr * cos_b + sin_b) + k_v * v * v
-
-
 def _pacing_w(flat_w: float, grade: np.ndarray, rider: Rider, conditions: Conditions
               ) -> np.ndarray:
     """Crank power per node of a pacing at `flat_w` on the flat, with the same marginal
@@ -121,7 +114,7 @@ def _pacing_w(flat_w: float, grade: np.ndarray, rider: Rider, conditions: Condit
     `v (m g (c_rr cos b + sin b) + 3 k_v v^2)` equals its flat value (`steady_speed_mps`
     with a 3x drag area solves that cubic), so more power on climbs, less on descents.
     (Constant power everywhere instead: bologna 429 iterations against 195.)"""
-    k_v = 0.5 * conditions.air_density_kgpm3 * rider.drag_area_m2
+    k_v = drag_factor_kgpm(rider, conditions)
     eta, mg = rider.drivetrain_efficiency, rider.mass_kg * GRAVITY_MPS2
     v_flat = steady_speed_mps(flat_w, rider, conditions, 0.0)
     marginal = v_flat * (mg * rider.crr + 3 * k_v * v_flat ** 2)
@@ -133,7 +126,7 @@ def _pacing_w(flat_w: float, grade: np.ndarray, rider: Rider, conditions: Condit
             v = steady_speed_mps(marginal / eta, triple, conditions, float(g))
             b = math.atan(g)
             cache[g] = min(rider.max_power_w, max(
-                0.0, v * _resistance_n(v, math.sin(b), math.cos(b), rider, k_v) / eta))
+                0.0, v * resistance_n(v, math.sin(b), math.cos(b), rider, k_v) / eta))
         out[i] = cache[g]
     return out
 
@@ -150,7 +143,7 @@ def _arc_ride(course: Course, nodes: np.ndarray, rider: Rider, conditions: Condi
     (E9) of that power.
     """
     m, g, eta = rider.mass_kg, GRAVITY_MPS2, rider.drivetrain_efficiency
-    k_v = 0.5 * conditions.air_density_kgpm3 * rider.drag_area_m2
+    k_v = drag_factor_kgpm(rider, conditions)
     lat = lateral_limit_mps2(rider, conditions)
     grip_x = conditions.mu_x * g
     lean = _PEDAL_LEAN_SHARE * rider.pedal_lean_max_rad
@@ -170,18 +163,18 @@ def _arc_ride(course: Course, nodes: np.ndarray, rider: Rider, conditions: Condi
             left = math.sqrt(max(0.0, 1.0 - (ay / lat) ** 2))
             force = min(eta * power_w[i] * gate / vi, grip_x * m * left)
             # In v^2 (exact at constant force): v dv/ds = a blows up in v where slow.
-            v2 = vi * vi + 2 * h * (force - _resistance_n(vi, sin_b[i], cos_b[i], rider, k_v)) / m
+            v2 = vi * vi + 2 * h * (force - resistance_n(vi, sin_b[i], cos_b[i], rider, k_v)) / m
             vi = math.sqrt(max(v2, V_MIN_MPS ** 2))
         v[i + 1] = min(vi, v_top[i + 1])
     for i in range(len(ds) - 1, 0, -1):  # backward: brake into what follows
         vn = v[i + 1]
         left = math.sqrt(max(0.0, 1.0 - (vn * vn * kappa[i + 1] / lat) ** 2))
         decel = (_ARC_BRAKE * grip_x * left
-                 + _resistance_n(vn, sin_b[i], cos_b[i], rider, k_v) / m)
+                 + resistance_n(vn, sin_b[i], cos_b[i], rider, k_v) / m)
         v[i] = min(v[i], math.sqrt(max(vn * vn + 2 * decel * ds[i], V_MIN_MPS ** 2)))
     vm = 0.5 * (v[1:] + v[:-1])
     force = (m * (v[1:] ** 2 - v[:-1] ** 2) / (2 * ds)
-             + _resistance_n(vm, sin_b[:-1], cos_b[:-1], rider, k_v))
+             + resistance_n(vm, sin_b[:-1], cos_b[:-1], rider, k_v))
     w = np.where(force > 0, force * vm / (eta * rider.max_power_w), force / (grip_x * m))
     w = np.clip(np.append(w, w[-1]), -1.0, 1.0)
     w[0] = rider.critical_power_w / rider.max_power_w  # the start's (course_nlp)

@@ -44,6 +44,7 @@ from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.model.dynamics import E9_SHARPNESS_W, SpatialModel, rk4_step
 from itt_planner.model.params import ModelParams
 from itt_planner.model.rider import Rider
+from itt_planner.model.steady import drag_factor_kgpm
 from itt_planner.model.wprime import WPrimeModel, e_n_rate
 from itt_planner.ocp.guess import PLAN_ARRAYS
 from itt_planner.ocp.mesh import road_data
@@ -170,7 +171,7 @@ def _replay(plan: Plan, course: Course, rider: Rider, conditions: Conditions,
     ds_c, n_c = course.ds_m, len(course.s_m)
     z, theta, kappa = course.z_m.tolist(), course.theta_rad.tolist(), course.kappa_per_m.tolist()
     g, m = GRAVITY_MPS2, rider.mass_kg
-    k_v = 0.5 * conditions.air_density_kgpm3 * rider.drag_area_m2
+    k_v = drag_factor_kgpm(rider, conditions)
     wind_e, wind_n = conditions.wind_enu_mps()
     mu_x, p_max, eta = conditions.mu_x, rider.max_power_w, rider.drivetrain_efficiency
     cp, w0 = rider.critical_power_w, rider.w_prime_j
