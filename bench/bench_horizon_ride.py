@@ -21,6 +21,10 @@ while the rider is stopped). `--plan` replays with a saved full-course plan
 Usage: .venv/bin/python bench/bench_horizon_ride.py [--rider RIDER.yaml] (default:
        bench/bologna_rider.yaml) [--ride FILE.tcx] [--model 3d|1d] [--cache-dir DIR]
        [--stop-s SECONDS] [--course-replan-period 0] [--plan FILE.plan.npz]
+       [--advice-out FILE.npz] (each advice's stamp, s, target power, cue, fallback)
+       [--compare-to FILE.npz] (another run's `--advice-out`: the JSON's `advice_delta`
+       gives the median and largest |difference| of the target power at the same stamps
+       and how many differ by more than 10 W)
 """
 
 from __future__ import annotations
@@ -36,9 +40,12 @@ import time
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from itt_planner.live.advice import Advice  # noqa: E402
 from itt_planner.live.advice_shaping import advice_stats  # noqa: E402
 from itt_planner.live.engine import ON_PLAN  # noqa: E402
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed  # noqa: E402
@@ -56,6 +63,21 @@ def percentile(values: list[float], q: float) -> float:
     return ordered[min(len(ordered) - 1, math.ceil(q * len(ordered)) - 1)]
 
 
+def advice_delta(advice: list[Advice], other: Path) -> dict[str, float | int]:
+    """Target power of `advice` against another run's saved advice at the same stamps."""
+    saved = np.load(other)
+    mine = {round(a.stamp_s, 3): a.target_power_w for a in advice}
+    theirs = dict(zip(np.round(saved["stamp_s"], 3), saved["target_power_w"], strict=True))
+    common = sorted(set(mine) & set(theirs))
+    delta = np.abs(np.array([mine[t] - theirs[t] for t in common]))
+    return {"stamps_compared": len(common), "stamps_only_here": len(mine) - len(common),
+            "stamps_only_there": len(theirs) - len(common),
+            "median_abs_delta_w": float(np.median(delta)) if len(delta) else math.nan,
+            "mean_abs_delta_w": float(np.mean(delta)) if len(delta) else math.nan,
+            "max_abs_delta_w": float(np.max(delta)) if len(delta) else math.nan,
+            "over_10_w": int(np.sum(delta > 10.0)), "identical": int(np.sum(delta == 0.0))}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--ride", type=Path, default=DEFAULT_RIDE)
@@ -65,6 +87,8 @@ def main() -> None:
     ap.add_argument("--stop-s", type=float, default=math.inf, help="replay this much only")
     ap.add_argument("--course-replan-period", type=float, default=0.0)
     ap.add_argument("--plan", default="", help="a saved full-course plan (else the cache's)")
+    ap.add_argument("--advice-out", type=Path, default=None, help="save the advice (npz)")
+    ap.add_argument("--compare-to", type=Path, default=None, help="advice saved by another run")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "ride.mcap"
@@ -92,6 +116,12 @@ def main() -> None:
         session.close()
     # Advice from a replan carries its solver status and iterations (a fallback: the
     # failed one's); the plan's own advice says `on_plan`.
+    if args.advice_out is not None:
+        np.savez(args.advice_out, stamp_s=[a.stamp_s for a in advice],
+                 s_m=[a.state.s_m for a in advice],
+                 target_power_w=[a.target_power_w for a in advice],
+                 cue=[int(a.cue) for a in advice], fallback=[a.fallback for a in advice],
+                 status=[a.solver_status for a in advice])
     replans = [a for a in advice if a.solver_status not in (ON_PLAN, "finished")]
     failed = [a for a in replans if a.fallback]
     times = engine.solve_times_s
@@ -123,6 +153,7 @@ def main() -> None:
                                  for k, v in counts.items()
                                  if k.startswith("course_replan_failed_")}},
         "advice_stats": advice_stats(advice) if advice else {},
+        "advice_delta": advice_delta(advice, args.compare_to) if args.compare_to else None,
     }, default=str))
 
 
