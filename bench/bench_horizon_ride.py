@@ -48,6 +48,7 @@ sys.path.insert(0, str(ROOT))
 from itt_planner.live.advice import Advice  # noqa: E402
 from itt_planner.live.advice_shaping import advice_stats  # noqa: E402
 from itt_planner.live.engine import ON_PLAN  # noqa: E402
+from itt_planner.live.horizon_step import HELD_STANDING  # noqa: E402
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed  # noqa: E402
 from itt_planner.logs.ride_import import import_ride  # noqa: E402
 from itt_planner.logs.ridelog import RideLogReader  # noqa: E402
@@ -131,14 +132,17 @@ def main() -> None:
         "advice": len(advice), "fallbacks": session.fallbacks,
         "fallback_pct": 100.0 * session.fallbacks / max(len(advice), 1),
         "replans": len(replans),
+        "held_standing": sum(a.solver_status == HELD_STANDING for a in advice),
         "statuses": dict(Counter("FAILED" if a.fallback else a.solver_status for a in replans)),
         "failed_per_km": dict(Counter(int(a.state.s_m // 1000) for a in failed)),
         "iterations_median": statistics.median(a.iterations for a in replans) if replans else None,
         "iterations_p95": percentile([a.iterations for a in replans], 0.95) if replans else None,
         "solve_time_median_s": statistics.median(times) if times else None,
         "solve_time_p95_s": percentile(times, 0.95) if times else None,
-        # Of the wall: the horizon solves (the rest is mostly waiting for re-solves).
-        "solve_time_total_s": sum(times),
+        # Of the wall: the horizon solves, the waits for late re-solves of the course (a
+        # deterministic replay adopts each `delay_s` of stamps after its request), the rest.
+        "solve_time_total_s": sum(times), "resolve_wait_s": engine.resolve_wait_s,
+        "rest_s": wall - sum(times) - engine.resolve_wait_s,
         "realtime_factor": ride_s / wall if wall > 0 else None, "wall_s": wall,
         "load_average": os.getloadavg(), "counts": counts,
         "course_replans": {
