@@ -7,7 +7,11 @@ were fallbacks, the horizon replans by solver status (`Suboptimal_Feasible` and
 `Smoothed_Feasible` are usable unconverged iterates, counted apart), the replans that
 failed per km of the course, iterations and wall-clock solve times (median, p95), the
 advice figures of `advice_stats`, the real-time factor and the load average (a shared
-machine: times are comparable only within one run).
+machine: times are comparable only within one run). Where the wall went: the horizon
+solves (`solve_time_total_s`), the waits for late re-solves of the course
+(`resolve_wait_s`) and the rest (`rest_s`: reading the log, estimator, shaping); advice
+held for a standing rider without a solve (`held_standing`, `live.horizon_step`) is
+counted apart from the replans.
 
 Course re-solves of the rest of the course are off by default (`--course-replan-period
 0`): each waits for a full-course OCP in a worker process (a deterministic replay waits

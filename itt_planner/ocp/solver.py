@@ -155,10 +155,8 @@ _COMMON = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
 #: terminal penalties give gradients of 100-1000) by up to 10x, so the tolerance and the
 #: barrier acted on a different problem than the one the weights were tuned on; without
 #: it the whole verona-like sweep went from 95 % to 98 % usable replans and the p95
-#: latency from 387 to 246 ms (bench/RESULTS.md). The barrier starts at 1e-5 since the
-#: multipliers are shifted too (`HorizonSettings.warm_multipliers`): on the Zwift Bologna
-#: replay's horizon solves 11,011 iterations with 1e-4, 8,918 with 1e-5 (2026-12-02).
-_HORIZON_WARM = {"mu_init": 1e-5, "mu_strategy": "monotone", "warm_start_init_point": "yes",
+#: latency from 387 to 246 ms (bench/RESULTS.md).
+_HORIZON_WARM = {"mu_init": 1e-4, "mu_strategy": "monotone", "warm_start_init_point": "yes",
                  "warm_start_bound_push": 1e-6, "warm_start_mult_bound_push": 1e-6,
                  "warm_start_slack_bound_push": 1e-6, "nlp_scaling_method": "none"}
 #: The first replan (or one after a failure) starts from the full-course plan, which was
