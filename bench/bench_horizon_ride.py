@@ -119,15 +119,16 @@ def main() -> None:
         advice = session.advice or []
         counts = session.counts()
         session.close()
-    # Advice from a replan carries its solver status and iterations (a fallback: the
-    # failed one's); the plan's own advice says `on_plan`.
     if args.advice_out is not None:
         np.savez(args.advice_out, stamp_s=[a.stamp_s for a in advice],
                  s_m=[a.state.s_m for a in advice],
                  target_power_w=[a.target_power_w for a in advice],
                  cue=[int(a.cue) for a in advice], fallback=[a.fallback for a in advice],
                  status=[a.solver_status for a in advice])
-    replans = [a for a in advice if a.solver_status not in (ON_PLAN, "finished")]
+    # Advice from a replan carries its solver status and iterations (a fallback: the
+    # failed one's); the plan's own advice says `on_plan`, advice held for a standing
+    # rider without a solve `held_standing`.
+    replans = [a for a in advice if a.solver_status not in (ON_PLAN, "finished", HELD_STANDING)]
     failed = [a for a in replans if a.fallback]
     times = engine.solve_times_s
     ride_s = (last - first) if first is not None and last is not None else 0.0
