@@ -190,6 +190,8 @@ class CourseReplanner:
         self._last_request_s = -math.inf
         #: Worker processes started so far (one per replanner unless one died).
         self.workers_started = 0
+        #: Wall-clock seconds `take` waited for the worker, for benchmarks; never published.
+        self.waited_s = 0.0
 
     def request(self, stamp_s: float, rider: Rider, guess: Plan, start: Start) -> bool:
         """Start a re-solve from `start` for `rider` unless one is pending, the last was
@@ -223,7 +225,11 @@ class CourseReplanner:
                 else stamp_s - asked < self.settings.delay_s - 1e-9):  # stamp rounding
             return None
         self._pending = None
-        plan, point = future.result()
+        t0 = time.perf_counter()
+        try:
+            plan, point = future.result()  # a deterministic engine waits for a late worker
+        finally:
+            self.waited_s += time.perf_counter() - t0
         self._point = None if point is None else (plan, point)
         return plan
 

@@ -1,25 +1,23 @@
 """The pacing engine: stamped samples in, `Advice` out at the replan rate.
 
-`PacingEngine` is the one owner of the belief it plans with: the W' model with the CP
-in use (`wprime_balance.WPrimeBalance`, revised both ways by `cp_monitor.CpMonitor`
-from the power the rider delivers) and the full-course plan in force with its version
+`PacingEngine` is the one owner of the belief it plans with: the W' model with the CP in use
+(`wprime_balance.WPrimeBalance`, revised both ways by `cp_monitor.CpMonitor` from the power
+the rider delivers) and the full-course plan in force with its version
 (`plan_in_force.PlanInForce`, +1 at every adoption). Each `Advice` carries both, and its
-target power is shaped into what a rider can follow, with a pedal / coast / brake /
-climb cue (`advice_shaping`). `counts` sums up what was not used silently (fallbacks,
-failed re-solves, refits).
+target power is shaped into what a rider can follow, with a pedal / coast / brake / climb cue
+(`advice_shaping`). `counts` sums up what was not used silently (fallbacks, failed re-solves,
+refits).
 
 Samples (`on_sample`, any type with an estimator hook) may arrive on any thread;
 `update(stamp_s)` replans when `replan_period_s` of STAMP time has passed since the last
-advice. The engine is clocked only by message stamps, so a replay is deterministic; the
-wall clock is read only to measure solve time (`horizon_step`; with
-`EngineSettings.deterministic` the advice carries `solve_time_s = 0.0`, no overrun is
-declared and diagnostics omit wall times, so two replays of one log give byte-identical
-advice and diagnostics).
+advice. The engine is clocked only by message stamps, so a replay is deterministic; the wall
+clock is read only to measure solve time (`horizon_step`; with `EngineSettings.deterministic`
+the advice carries `solve_time_s = 0.0`, no overrun is declared and diagnostics omit wall
+times, so two replays of one log give byte-identical advice and diagnostics).
 
-At each replan the advice is the plan in force while the rider keeps to it
-(`plan_in_force`), else a receding-horizon solve from the rider (`horizon_step`, which
-falls back to the last good advice when a solve fails: `fallback=True` and a
-diagnostic say so).
+At each replan the advice is the plan in force while the rider keeps to it (`plan_in_force`),
+else a receding-horizon solve from the rider (`horizon_step`, which falls back to the last
+good advice when a solve fails: `fallback=True` and a diagnostic say so).
 """
 
 from __future__ import annotations
@@ -120,10 +118,9 @@ class PacingEngine:
     """
 
     def __init__(self, course: Course, rider: Rider, plan: Plan, *,
-                 conditions: Conditions = Conditions(),
-                 settings: EngineSettings = EngineSettings(),
-                 planner: HorizonPlanner | None = None,
-                 horizon: HorizonSettings | None = None) -> None:
+                 conditions: Conditions = Conditions(), settings: EngineSettings = EngineSettings(),
+                 planner: HorizonPlanner | None = None, horizon: HorizonSettings | None = None
+                 ) -> None:
         if planner is None:
             from itt_planner.ocp.horizon import HorizonPlanner  # noqa: PLC0415  (CasADi)
 
@@ -143,8 +140,7 @@ class PacingEngine:
         self._cp = CpMonitor(rider, self._balance, settings.cp_monitor)
         self._shaper = AdviceShaper(course, rider.power_rate_max_wps, settings.shaping)
         self._plans = PlanInForce(course, plan, rider.critical_power_w,
-                                  band_j=settings.on_plan_band_j,
-                                  conditions=planner.conditions,
+                                  band_j=settings.on_plan_band_j, conditions=planner.conditions,
                                   replan=settings.course_replan,
                                   deterministic=settings.deterministic, stats=self._stats)
         #: When a re-solve may be asked for (back-off, stopped rider: `resolve_gate`).
@@ -152,9 +148,8 @@ class PacingEngine:
             rider, planner.conditions, settings.course_replan.ocp), self._stats)
         #: The horizon planner and its solves (`horizon_step`).
         self.horizon = HorizonStep(course, planner, max_solve_time_s=settings.max_solve_time_s,
-                                   deterministic=settings.deterministic,
-                                   line_gate_m=settings.line_gate_m, lock=self._lock,
-                                   stats=self._stats)
+                                   deterministic=settings.deterministic, lock=self._lock,
+                                   line_gate_m=settings.line_gate_m, stats=self._stats)
         self._last_advice_stamp: float | None = None
         self._reported_rejects: dict[str, int] = {}
         self._last_input: dict[str, float] = {}
@@ -209,6 +204,11 @@ class PacingEngine:
     def solve_times_s(self) -> list[float]:
         """Measured wall-clock horizon solve times (s), for benchmarks; never published."""
         return self.horizon.solve_times_s
+
+    @property
+    def resolve_wait_s(self) -> float:
+        """Wall-clock time updates waited for late re-solves (s), for benchmarks."""
+        return self._plans.resolve_wait_s
 
     @property
     def counters(self) -> dict[str, int]:

@@ -17,7 +17,8 @@ from itt_planner.live.advice import Diagnostic, Level
 _SOLVER_COUNTERS = ("solves", "failures", "overruns", "exceptions", "fallbacks",
                     "unconverged_solves", "course_replans_asked", "course_replans",
                     "course_replan_failures", "course_replans_backed_off",
-                    "course_replans_skipped_stopped", "course_replan_backoffs")
+                    "course_replans_skipped_stopped", "course_replan_backoffs",
+                    "horizon_holds_standing")
 
 
 @dataclass(frozen=True)

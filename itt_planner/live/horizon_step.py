@@ -7,6 +7,20 @@ failures in a row. A failed, raising or overrunning solve never reaches the ride
 last good solution, shifted to the current `s`, stays in force as a fallback (before any
 good solve, the full-course plan over the horizon serves).
 
+A rider who stands (slower than `STANDING_MPS`, e.g. at a pause) is not replanned every
+period: the horizon's NLP starts from the same clipped 1 m/s, at the same place, with
+the power meter's 0 W, so each solve repeats the last (on the Zwift Bologna ride: 224
+replans over a 220 s stop, every one advising the same 158 W launch; bench/RESULTS.md,
+2026-12-02). After a good solve from a standing rider, the advice holds that solution
+(status `HELD_STANDING`, no iterations, not a fallback, counted `horizon_holds_standing`;
+moved to start where the rider stands)
+while the rider stands within `_HOLD_M` of where it was solved, the power measured within
+`_HOLD_W` of what it was then (a rider pushing off from a standstill is replanned), for
+at most `_HOLD_S` of the ride clock (the W' a stop gives back is planned with again at
+least that often), and only while it is the last good solution of the same planner (a
+re-solved plan, a CP refit or advice on the plan end the hold). The rider rolling off is
+replanned at once.
+
 Determinism: IPOPT's iterates do not depend on the wall clock, but the measured solve
 time and an overrun check against it do. `deterministic` reports `solve_time_s = 0.0`,
 declares no overruns (the planner's own iteration cap is the budget); the measured
@@ -37,6 +51,19 @@ if TYPE_CHECKING:
     from itt_planner.ocp.horizon_settings import HorizonSolution
 
 log = logging.getLogger(__name__)
+
+#: Solver status of advice that holds the last solve for a standing rider.
+HELD_STANDING = "held_standing"
+#: Slower than this the rider stands: the horizon starts from this speed anyway
+#: (`HorizonWindow.initial_state` clips the speed up to 1 m/s).
+STANDING_MPS = 1.0
+#: A standing rider within this of the held solve's start is at the same place (the
+#: estimate drifts a little while standing).
+_HOLD_M = 5.0
+#: ... with the measured power within this of the held solve's (the NLP starts from it).
+_HOLD_W = 10.0
+#: A hold lasts at most this long (ride clock), so the W' a stop gives back is planned with.
+_HOLD_S = 30.0
 
 
 class HorizonStep:
@@ -69,6 +96,9 @@ class HorizonStep:
         self.consecutive_failures = 0
         #: Measured wall-clock solve times (s), for benchmarks; never published.
         self.solve_times_s: list[float] = []
+        #: The good solve from a standing rider the advice may hold, with its planner
+        #: (module docstring).
+        self._held: tuple[Solution, HorizonPlanner] | None = None
 
     @property
     def horizon_m(self) -> float:
@@ -95,7 +125,13 @@ class HorizonStep:
     def solve(self, state: RiderState, start: RiderState, plan: Plan,
               w_prime_max_j: float) -> tuple[Solution, bool]:
         """Solve the horizon from `start` (`on_line(state)`): the solution and whether
-        it is a fallback (the last good one, or the plan's when that has run out)."""
+        it is a fallback (the last good one, or the plan's when that has run out). A
+        rider who stands is held on the last solve instead (module docstring)."""
+        held = self._hold(state)
+        if held is not None:
+            self._stats["horizon_holds_standing"] += 1
+            self.status, self.iterations, self.solve_time_s = HELD_STANDING, 0, 0.0
+            return held, False
         t0 = time.perf_counter()
         try:
             sol: HorizonSolution | None = self.planner.solve(start)
@@ -118,8 +154,10 @@ class HorizonStep:
                             sol.w_prime_j, sol.predicted_finish_s, sol.w_prime_finish_j)
             with self._lock:
                 self.last_good = good
+            self._held = (good, self.planner) if state.speed_mps < STANDING_MPS else None
             return good, False
         self.consecutive_failures += 1
+        self._held = None
         if overrun:
             self._stats["overruns"] += 1
             self.status = f"overrun ({self.status})"
@@ -136,6 +174,26 @@ class HorizonStep:
         if last is None or last.s_m[-1] <= state.s_m + 1.0:
             last = self.from_plan(plan, state, w_prime_max_j)
         return last, True
+
+    def _hold(self, state: RiderState) -> Solution | None:
+        """The solution to hold for a standing rider (module docstring), else None."""
+        if self._held is None:
+            return None
+        good, planner = self._held
+        with self._lock:
+            last = self.last_good
+        shift = state.s_m - float(good.s_m[0])
+        if (good is last and planner is self.planner and state.speed_mps < STANDING_MPS
+                and abs(shift) <= _HOLD_M
+                and abs(state.power_w - good.state.power_w) <= _HOLD_W
+                and state.elapsed_s - good.state.elapsed_s < _HOLD_S):
+            # Moved to start where the rider stands, as a solve from there would: the
+            # rider has not ridden into it (cut further along, its ramp from the measured
+            # 0 W up to the launch power would be half done). Its time is the solve's:
+            # the advice's finish projection counts the time stood since.
+            return dataclasses.replace(good, s_m=good.s_m + shift)
+        self._held = None
+        return None
 
     def on_line(self, state: RiderState, plan: Plan) -> RiderState:
         """The state the horizon plans from: on the advised line (its offset and

@@ -79,6 +79,11 @@ class PlanInForce:
             log.info("engine: the first re-solve of the course will start from the plan's "
                      "primal point only: %s", self._replanner.cold_reason)
 
+    @property
+    def resolve_wait_s(self) -> float:
+        """Wall-clock seconds spent waiting for re-solves (`CourseReplanner.waited_s`)."""
+        return self._replanner.waited_s
+
     def fits_cp(self, cp_in_use_w: float) -> bool:
         """Whether the plan in force was solved for the CP in use, within `_CP_TOL`."""
         return abs(self.cp_w - cp_in_use_w) <= _CP_TOL * cp_in_use_w

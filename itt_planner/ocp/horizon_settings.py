@@ -54,7 +54,14 @@ class HorizonSettings:
         eps_wn, sharpness_w: smoothing widths of max(W_n, 0) and of the E9 switch at
             critical power (`model.dynamics`) in the horizon model.
         w_delta, w_power: objective weights w_1, w_2 (model.md section 5).
-        warm_multipliers: also shift the previous multipliers (measured neutral).
+        warm_multipliers: also shift the previous multipliers (a primal-dual warm
+            start). On the Zwift Bologna replay's 961 horizon solves (bench/RESULTS.md,
+            2026-12-02): 13,934 -> 11,011 iterations, median 8 -> 6, the planned power
+            10 m ahead within 0.3 W (p95); on the perturbed technical-descent sweep
+            (tests/ocp/test_horizon.py) 50 of 50 usable instead of 49 (1,900 iterations
+            instead of 1,592: a 50 m jump with new noise is no shifted replan). With it,
+            a smaller initial barrier (1e-5) cut Bologna's iterations to 8,918 but left
+            only 47 of 50 of that sweep usable: `solver._HORIZON_WARM` keeps 1e-4.
         margin_m: distance kept from each road edge (C11).
         feasible_tol: a budget-capped iterate is returned as success
             ("Suboptimal_Feasible") when its continuity gaps, bounds and path-constraint
@@ -98,7 +105,7 @@ class HorizonSettings:
     sharpness_w: float = 5.0
     w_delta: float = 0.01
     w_power: float = 0.01
-    warm_multipliers: bool = False
+    warm_multipliers: bool = True
     feasible_tol: float = 1e-3
     grip_tol: float = 0.02
     warm_share: float = 0.6
