@@ -9,6 +9,10 @@ from dataclasses import dataclass
 
 from itt_planner.model.wprime import WPrimeModel
 
+#: The default coarsest mesh spacings (3D, 1D) the CPU budget per km is measured at.
+_DEFAULT_H_MAX_M = 4.0
+_DEFAULT_H_MAX_1D_M = 10.0
+
 
 @dataclass(frozen=True)
 class OcpSettings:
@@ -35,9 +39,9 @@ class OcpSettings:
     h_min_m: float = 1.0
     # Longer intervals make each shooting interval span up to ~1 s of the unstable roll
     # mode at climbing speeds; IPOPT then needed 1e14 regularisation and did not converge.
-    h_max_m: float = 4.0
+    h_max_m: float = _DEFAULT_H_MAX_M
     # The 1D model has no roll mode: coarser intervals are accurate and converge.
-    h_max_1d_m: float = 10.0
+    h_max_1d_m: float = _DEFAULT_H_MAX_1D_M
     uniform_m: float | None = None
     margin_m: float = 0.5
     start_speed_mps: float = 1.0
@@ -54,18 +58,30 @@ class OcpSettings:
     def budget(self, model: str, length_m: float) -> tuple[int, float]:
         """(iterations, seconds) for one solve of `length_m` metres with `model`.
 
-        Scaled with the course: 3D 500 iterations + 40 per km and 60 s + 10 s per km
-        (the 17 km Bologna course needed ~500 iterations; measured times in
-        bench/RESULTS.md), 1D 400 + 20 per km and 20 s + 2 s per km. The seconds are
-        CPU seconds of this process (IPOPT's `max_cpu_time`, and the restarts' share):
-        on a loaded, shared machine wall time says more about the neighbours than about
-        the course.
+        Iterations scale with the course: 3D 500 + 40 per km (the 17 km Bologna course
+        needed ~500 with the old guess), 1D 400 + 20 per km. Seconds scale with what
+        costs, the nodes: 3D 60 s + 10 s per km, 1D 20 s + 2 s per km at the default
+        coarsest spacing (`h_max_m` 4 m, `h_max_1d_m` 10 m), times default / actual
+        spacing (`uniform_m` if set) on a finer mesh. Why: the mesh has ~250-300 nodes
+        per km at the default 3D spacing (bologna 4,309 for 16.1 km, stjohns 10,340 for 41.3 km);
+        half the spacing doubles them (8,155 and 20,660) and the CPU time per
+        iteration with them (stjohns 0.57 s at x2, 0.88 s at x1, 2.3 s at x0.5 on the
+        shared machine), while the iterations stay of the same order. A coarser mesh
+        keeps the default seconds: its iterations did not get proportionally cheaper
+        (those figures; tokyo2020 needed 162 s CPU at x2). With seconds per
+        km alone, bologna, verona-like, stjohns and tokyo2020 at half spacing stopped
+        at the CPU budget (bench/RESULTS.md, 2026-12-01 and 2026-12-02). The seconds
+        are CPU seconds of this process (IPOPT's `max_cpu_time`, and the restarts'
+        share): on a loaded, shared machine wall time says more about the neighbours
+        than about the course.
         """
         km = max(length_m, 0.0) / 1000.0
         if model == "3d":
-            iters, secs = 500 + 40 * km, 60.0 + 10.0 * km
+            finer = max(1.0, _DEFAULT_H_MAX_M / (self.uniform_m or self.h_max_m))
+            iters, secs = 500 + 40 * km, 60.0 + 10.0 * km * finer
         else:
-            iters, secs = 400 + 20 * km, 20.0 + 2.0 * km
+            finer = max(1.0, _DEFAULT_H_MAX_1D_M / (self.uniform_m or self.h_max_1d_m))
+            iters, secs = 400 + 20 * km, 20.0 + 2.0 * km * finer
         return (int(self.max_iter if self.max_iter is not None else iters),
                 float(self.max_cpu_time_s if self.max_cpu_time_s is not None else secs))
 
