@@ -7,9 +7,14 @@ the row says: status (`solver.PlanStatus`), IPOPT's status, iterations, the stra
 used, nodes, wall time, CPU time (the solve's `cpu_s`; `child_cpu_s` the whole child
 process with imports and verification), finish time, whether the plan passed its
 verification (and its worst mismatch). Then per course: the finish-time differences
-between the meshes, and 1D vs 3D on the default mesh (the 1D finish should be within
+between the meshes, and each 1D against the 3D on the same mesh (the 1D finish should be within
 0.3 % of the 3D finish on courses without tight corners; the course's smallest corner
 radius is printed beside it).
+
+Models: `1d` (model.md section 6, on the centre line), `1d-line` (the same 1D on the
+shortest line within the road less the edge margin, `ocp.line_plan`: the 1D's own
+time-optimal path, as the 3D plan takes its own line on the road's width; the row's
+`line_ratio` is the line's length over the centre line's), `3d`.
 
 Courses: the demo courses, the real tracks (`../shared/data`, skipped when absent), and
 course-builder courses with a climb, a technical descent, a hilly route with a -6.9 %
@@ -19,7 +24,7 @@ CP 290 W, otherwise the paper calibration).
 Each case runs in a fresh child process (one case's memory or a crash cannot colour the
 next); rows are printed as they come and, with `--jsonl FILE`, appended to FILE.
 
-Run: .venv/bin/python bench/bench_convergence.py [--models 1d,3d] [--meshes 1,0.5,2]
+Run: .venv/bin/python bench/bench_convergence.py [--models 1d,1d-line,3d] [--meshes 1,0.5,2]
      [--courses NAME,...] [--jsonl FILE]
 Wall times on a shared, loaded machine: the load average is printed with every row.
 """
@@ -89,6 +94,7 @@ BUILT: dict[str, dict[str, Any]] = {
         {"type": "straight", "length_m": 3100, "grade_pct": 0.5}]},
 }
 DEFAULT_COURSES = ("verona-like", "rovereto-like", *REAL, *BUILT)
+MODELS = ("1d", "1d-line", "3d")
 
 
 def course_by_name(name: str) -> Course:
@@ -106,6 +112,7 @@ def _case(name: str, model: str, scale: float, queue: mp.Queue[dict[str, Any]]) 
 
     from itt_planner.ocp.course_problem import solve_plan  # noqa: PLC0415
     from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
+    from itt_planner.ocp.line_plan import solve_plan_on_line  # noqa: PLC0415
 
     row: dict[str, Any] = {"course": name, "model": model, "mesh": scale}
     try:
@@ -114,7 +121,10 @@ def _case(name: str, model: str, scale: float, queue: mp.Queue[dict[str, Any]]) 
         settings = OcpSettings(h_min_m=base.h_min_m * scale, h_max_m=base.h_max_m * scale,
                                h_max_1d_m=base.h_max_1d_m * scale)
         t0, c0 = time.perf_counter(), time.process_time()
-        plan = solve_plan(course, RIDER, settings=settings, model=model)
+        if model == "1d-line":
+            plan = solve_plan_on_line(course, RIDER, settings=settings)
+        else:
+            plan = solve_plan(course, RIDER, settings=settings, model=model)
         cpu_s = time.process_time() - c0
         ver = plan.meta.get("verification") or {}
         row |= {"length_km": round(course.length_m / 1000, 2),
@@ -128,7 +138,8 @@ def _case(name: str, model: str, scale: float, queue: mp.Queue[dict[str, Any]]) 
                 "verified": ver.get("verified"), "worst": ver.get("worst"),
                 "worst_ratio": ver.get("worst_ratio"),
                 "max_speed_error_mps": ver.get("max_speed_error_mps"),
-                "v_max_kmh": round(3.6 * float(np.max(plan.v_mps)), 1)}
+                "v_max_kmh": round(3.6 * float(np.max(plan.v_mps)), 1),
+                "line_ratio": plan.meta.get("line", {}).get("length_ratio")}
     except Exception as err:  # noqa: BLE001 - a bench row records any failure
         row |= {"status": "error", "error": f"{type(err).__name__}: {err}"[:200]}
     row["load"] = "/".join(f"{x:.1f}" for x in os.getloadavg())
@@ -171,7 +182,7 @@ def summary(rows: list[dict[str, Any]]) -> str:
     by = {(r["course"], r["model"], r["mesh"]): r for r in rows if "finish_s" in r}
     for course in dict.fromkeys(r["course"] for r in rows):
         parts = []
-        for model in ("1d", "3d"):
+        for model in MODELS:
             ref = by.get((course, model, 1.0))
             if ref is None:
                 continue
@@ -180,11 +191,17 @@ def summary(rows: list[dict[str, Any]]) -> str:
                 if other is not None:
                     diff = 100 * (other["finish_s"] - ref["finish_s"]) / ref["finish_s"]
                     parts.append(f"{model} mesh x{scale:g} {diff:+.3f} %")
-        one, three = by.get((course, "1d", 1.0)), by.get((course, "3d", 1.0))
-        if one and three:
-            diff = 100 * (one["finish_s"] - three["finish_s"]) / three["finish_s"]
-            parts.append(f"1D vs 3D {diff:+.3f} % (smallest corner radius "
-                         f"{three['min_radius_m']} m)")
+        for scale in (1.0, 0.5, 2.0):  # each 1D against the 3D on the same mesh
+            three = by.get((course, "3d", scale))
+            for model in MODELS[:2]:
+                one = by.get((course, model, scale))
+                if one and three:
+                    diff = 100 * (one["finish_s"] - three["finish_s"]) / three["finish_s"]
+                    parts.append(f"{model} vs 3d x{scale:g} {diff:+.3f} %")
+        if parts:
+            radius = next(r["min_radius_m"] for r in rows
+                          if r["course"] == course and "min_radius_m" in r)
+            parts.append(f"smallest corner radius {radius} m")
         if parts:
             lines.append(f"- {course}: " + "; ".join(parts))
     return "\n".join(lines)
@@ -192,7 +209,7 @@ def summary(rows: list[dict[str, Any]]) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--models", default="1d,3d")
+    ap.add_argument("--models", default=",".join(MODELS))
     ap.add_argument("--meshes", default="1,0.5,2")
     ap.add_argument("--courses", default=",".join(DEFAULT_COURSES))
     ap.add_argument("--jsonl", type=Path, default=None)

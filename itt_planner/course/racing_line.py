@@ -1,0 +1,142 @@
+"""The shortest line within the road, and the course of a rider who rides it.
+
+The 1D model (model.md section 6) has no lateral dynamics: its speed does not depend on
+the curvature of the path it rides, so its time-optimal path on a road of some width is
+the shortest one within the road (less the C11 edge margin). On the centre line it rode
+a longer course than the 3D plan, which uses the road's width on every bend: on St
+John's (41.3 km, corners >= 23 m) the 3D plan's line is 0.38 % shorter than the centre
+line and that length alone was worth 13.8 s of the 1D's 13.4 s deficit (bench/RESULTS.md,
+2026-12-02). `line_course` gives the 1D that line as a course of its own.
+
+- `shortest_line`: the lateral offset n(s) of the shortest line between the road edges
+  less a margin, from the centre line at the start (the OCP's start, model.md section 5),
+  with its heading and the stretch ds_line / ds (E8 without the speed);
+- `line_course`: that line as a `Course` (its arc length is the line's; altitude, widths
+  left and right of the line from the road) and the line's arc length at each point of
+  the road's grid, to map a plan on the line back onto the road (`RacingLine.road_s`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from itt_planner.course.geometry import Course
+
+#: Active-set steps of the bound-constrained quadratic program, and the outer steps that
+#: move its weights to the last line (the length's expansion is exact at the solution).
+_ACTIVE_SET_STEPS = 60
+_OUTER_STEPS = 3
+
+
+@dataclass(frozen=True)
+class RacingLine:
+    """The shortest line of a road and the course along it.
+
+    Attributes:
+        road: the road (its centre line parametrises `n_m`).
+        n_m, alpha_rad: the line's offset (positive left) and heading relative to the
+            road, on the road's grid `road.s_m`.
+        s_line_m: the line's arc length at each point of `road.s_m` (0 at the start).
+        course: the line as a course: `course.s_m` is the line's arc length.
+    """
+
+    road: Course
+    n_m: np.ndarray
+    alpha_rad: np.ndarray
+    s_line_m: np.ndarray
+    course: Course
+
+    @property
+    def length_ratio(self) -> float:
+        """Length of the line over the length of the centre line."""
+        return float(self.s_line_m[-1] / self.road.length_m)
+
+    def road_s(self, s_line_m: np.ndarray) -> np.ndarray:
+        """Road (centre-line) arc length of points given by their arc length on the line."""
+        out: np.ndarray = np.interp(s_line_m, self.s_line_m, self.road.s_m)
+        return out
+
+
+def _box_qp(hess: sp.csc_matrix, grad: np.ndarray, lo: np.ndarray, hi: np.ndarray,
+            x0: np.ndarray) -> np.ndarray:
+    """min 1/2 x'Hx + g'x on lo <= x <= hi by a primal-dual active-set method.
+
+    For an M-matrix H (here the line's second differences) the method stops after a
+    few sparse solves with the exact active set; `x0` only seeds the active sets. Where
+    lo == hi the value is held (whatever its multiplier's sign).
+    """
+    pinned = lo >= hi
+    at_lo = (x0 <= lo) | pinned
+    at_hi = (x0 >= hi) & ~at_lo
+    x = x0
+    for _ in range(_ACTIVE_SET_STEPS):
+        free = ~(at_lo | at_hi)
+        x = np.where(at_lo, lo, np.where(at_hi, hi, 0.0))
+        if np.any(free):
+            rhs = -grad[free] - hess[free][:, ~free] @ x[~free]
+            x[free] = spla.spsolve(hess[free][:, free].tocsc(), rhs)
+        slope = hess @ x + grad  # the bound multipliers where a bound holds
+        new_lo = (free & (x < lo)) | (at_lo & (slope > 0)) | pinned
+        new_hi = (free & (x > hi)) | (at_hi & (slope < 0))
+        new_hi &= ~new_lo
+        if np.array_equal(new_lo, at_lo) and np.array_equal(new_hi, at_hi):
+            break
+        at_lo, at_hi = new_lo, new_hi
+    out: np.ndarray = np.clip(x, lo, hi)
+    return out
+
+
+def shortest_line(road: Course, margin_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The shortest line within `margin_m` of the road edges, on the road's grid: its
+    offset n, heading alpha and the stretch ds_line / ds, starting on the centre line.
+
+    The length of a line at offset n(s) is the integral of
+    sqrt((1 - n kappa)^2 + n'^2) ds ~ (1 - n kappa) + n'^2 / (2 (1 - n kappa)): a
+    quadratic program in n with the second differences as Hessian (a taut string between
+    the edges, pulled inwards by the curvature), solved with its weights 1 / (1 - n kappa)
+    at the last line a few times. The stretch is the exact one of the result (E8).
+    """
+    s, kappa = road.s_m, road.kappa_per_m
+    h = np.diff(s)
+    lo = -(road.width_right_m - margin_m)
+    hi = road.width_left_m - margin_m
+    lo[0] = hi[0] = 0.0  # the OCPs start on the centre line
+    share = np.concatenate([[h[0] / 2], (h[1:] + h[:-1]) / 2, [h[-1] / 2]])
+    rows = np.arange(len(h))
+    diff = sp.csr_matrix((np.concatenate([-1 / h, 1 / h]),
+                          (np.tile(rows, 2), np.concatenate([rows, rows + 1]))),
+                         shape=(len(h), len(s)))
+    n = np.zeros(len(s))
+    for _ in range(_OUTER_STEPS):
+        stretch_mid = 1 - 0.5 * (n[1:] + n[:-1]) * 0.5 * (kappa[1:] + kappa[:-1])
+        hess = (diff.T @ sp.diags(h / stretch_mid) @ diff).tocsc()
+        n = _box_qp(hess, -kappa * share, lo, hi, n)
+    alpha = np.arctan2(np.gradient(n, s), 1 - n * kappa)
+    stretch = (1 - n * kappa) / np.cos(alpha)
+    return n, alpha, stretch
+
+
+def line_course(road: Course, margin_m: float) -> RacingLine:
+    """The shortest line of `road` (`shortest_line`) and the course along it.
+
+    The line's course has the road's altitude at each point of the line, and the road's
+    width left and right of the line; heading, curvature and slope are those of the line
+    (`Course.from_centerline`), so its slope is the climb over the line's own length.
+    """
+    n, alpha, _ = shortest_line(road, margin_m)
+    x, y, z = road.enu_at(road.s_m, n)
+    s_line = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
+    # A grid step that ends exactly at the finish (the road's step would cut up to a step).
+    steps = max(3, round(s_line[-1] / road.ds_m))
+    course = Course.from_centerline(
+        f"{road.name} (shortest line)", x, y, z, origin=road.origin,
+        closed_loop=road.closed_loop, ds_m=s_line[-1] / steps,
+        width_left_m=road.width_left_m - n, width_right_m=road.width_right_m + n,
+        source=road.source, source_sha256=road.source_sha256, synthetic=road.synthetic,
+        build={**road.build, "line": {"margin_m": margin_m,
+                                      "length_ratio": float(s_line[-1] / road.length_m)}})
+    return RacingLine(road, n, alpha, s_line, course)
