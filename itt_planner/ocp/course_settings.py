@@ -59,7 +59,10 @@ class OcpSettings:
         """(iterations, seconds) for one solve of `length_m` metres with `model`.
 
         Iterations scale with the course: 3D 500 + 40 per km (the 17 km Bologna course
-        needed ~500 with the old guess), 1D 400 + 20 per km. Seconds scale with what
+        needed ~500 with the old guess), 1D 600 + 40 per km (at double spacing the 1D
+        first start on Bologna converged on a step artefact in 340 iterations and the
+        re-solve on the refined mesh needed 487 more: 827 against 722 of 400 + 20 per
+        km; 1D iterations are cheap, its CPU seconds are the guard). Seconds scale with what
         costs, the nodes: 3D 60 s + 10 s per km, 1D 20 s + 2 s per km at the default
         coarsest spacing (`h_max_m` 4 m, `h_max_1d_m` 10 m), times default / actual
         spacing (`uniform_m` if set) on a finer mesh. Why: the mesh has ~250-300 nodes
@@ -81,7 +84,7 @@ class OcpSettings:
             iters, secs = 500 + 40 * km, 60.0 + 10.0 * km * finer
         else:
             finer = max(1.0, _DEFAULT_H_MAX_1D_M / (self.uniform_m or self.h_max_1d_m))
-            iters, secs = 400 + 20 * km, 20.0 + 2.0 * km * finer
+            iters, secs = 600 + 40 * km, 20.0 + 2.0 * km * finer
         return (int(self.max_iter if self.max_iter is not None else iters),
                 float(self.max_cpu_time_s if self.max_cpu_time_s is not None else secs))
 
