@@ -90,6 +90,10 @@ def plan_cli(
         None, "--max-time-s", help="Solver time budget (s); default scales with the course."),
     max_iter: int | None = typer.Option(
         None, "--max-iter", help="Solver iteration budget; default scales with the course."),
+    line: str = typer.Option(
+        "centre", "--line",
+        help="1D only: ride the centre line, or 'shortest': the shortest line within the "
+             "road (the 3D plan takes its own line; on the centre line the 1D rides farther)."),
     allow_unconverged: bool = typer.Option(
         False, "--allow-unconverged",
         help="Exit 0 even if the plan did not converge or failed verification (says so)."),
@@ -102,19 +106,26 @@ def plan_cli(
     printed with that status), unless --allow-unconverged.
     """
     from itt_planner.course.loader import load_course  # noqa: PLC0415
+    from itt_planner.errors import SolveError  # noqa: PLC0415
     from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
     from itt_planner.ocp.cache import solve_keeping_point  # noqa: PLC0415
     from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
+    from itt_planner.ocp.line_plan import solve_plan_on_line  # noqa: PLC0415
 
     with errors_to_exit(as_json):
+        if line not in ("centre", "shortest") or (line == "shortest" and model != "1d"):
+            raise SolveError(f"--line {line!r}: 'centre', or 'shortest' with --model 1d "
+                             "(the 3D model chooses its own line)", status="invalid_input")
         built = load_course(course)
         conditions = Conditions.from_meteo(wind_kmh=wind_kmh, wind_from_deg=wind_from_deg, mu=mu)
-        # With its solver point: a node given this plan (`--plan`) re-solves warm.
-        solved = solve_keeping_point(built, load_rider(rider), conditions,
-                                     OcpSettings(max_cpu_time_s=max_time_s, max_iter=max_iter),
-                                     model)
-        result = plan_summary(solved, built)
+        settings = OcpSettings(max_cpu_time_s=max_time_s, max_iter=max_iter)
+        # With its solver point: a node given this plan (`--plan`) re-solves warm. On the
+        # shortest line the point is the line's NLP's, so none is kept.
+        solved = (solve_plan_on_line(built, load_rider(rider), conditions, settings)
+                  if line == "shortest" else
+                  solve_keeping_point(built, load_rider(rider), conditions, settings, model))
+        result = plan_summary(solved, built) | {"line": line}
         if not result["success"] and allow_unconverged:
             result["allowed_unconverged"] = True
         if output is not None:

@@ -5,7 +5,8 @@ C11-C14 of both problems (`bounds`), the initial guess (`guess`), the solver sea
 full-course problem (`course_settings`, `course_nlp`, `course_problem`) and the
 receding-horizon one (`horizon_settings`, `horizon_window`, `horizon`), the `Plan` and
 its cut to a horizon (`plan`, `horizon_cut`), its independent verification (`verify`),
-the plan cache (`cache`) and the analysis of plans on a course (`analysis`)."""
+the plan cache (`cache`), the analysis of plans on a course (`analysis`) and the 1D plan
+on the shortest line within the road (`line_plan`)."""
 
 from itt_planner.ocp.cache import load_or_solve
 from itt_planner.ocp.course_problem import solve_plan

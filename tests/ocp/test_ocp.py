@@ -339,6 +339,23 @@ def test_plan_cli_json(tmp_path: Path, model: str) -> None:
     assert json.loads(report.stdout)["course"] == "short"
 
 
+def test_plan_cli_1d_on_the_shortest_line(tmp_path: Path) -> None:
+    """`--line shortest`: the 1D rides the shortest line within the road, so it is faster
+    than on the centre line; the 3D model refuses the option (it picks its own line)."""
+    course = _yaml(tmp_path / "short.yaml", SHORT_COURSE)
+    runs = {line: runner.invoke(app, ["plan", "--course", str(course), "--rider", "typical",
+                                      "--model", "1d", "--line", line, "--json"])
+            for line in ("centre", "shortest")}
+    info = {line: json.loads(r.stdout) for line, r in runs.items()}
+    assert all(r.exit_code == 0 for r in runs.values()), info
+    assert info["shortest"]["line"] == "shortest" and info["shortest"]["verified"] is True
+    assert info["shortest"]["finish_time_s"] < info["centre"]["finish_time_s"]
+    refused = runner.invoke(app, ["plan", "--course", str(course), "--model", "3d",
+                                  "--line", "shortest", "--json"])
+    _no_traceback(refused)
+    assert refused.exit_code == 1 and "--line" in json.loads(refused.stdout)["error"]
+
+
 def test_compare_riders_cli_json(tmp_path: Path) -> None:
     course = _yaml(tmp_path / "short.yaml", SHORT_COURSE)
     result = runner.invoke(app, ["compare-riders", "--course", str(course), "--json"])
