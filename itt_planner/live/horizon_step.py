@@ -13,13 +13,12 @@ the power meter's 0 W, so each solve repeats the last (on the Zwift Bologna ride
 replans over a 220 s stop, every one advising the same 158 W launch; bench/RESULTS.md,
 2026-12-02). After a good solve from a standing rider, the advice holds that solution
 (status `HELD_STANDING`, no iterations, not a fallback, counted `horizon_holds_standing`;
-moved to start where the rider stands)
-while the rider stands within `_HOLD_M` of where it was solved, the power measured within
-`_HOLD_W` of what it was then (a rider pushing off from a standstill is replanned), for
-at most `_HOLD_S` of the ride clock (the W' a stop gives back is planned with again at
-least that often), and only while it is the last good solution of the same planner (a
-re-solved plan, a CP refit or advice on the plan end the hold). The rider rolling off is
-replanned at once.
+moved to start where the rider stands) while the rider stands within `_HOLD_M` of where
+it was solved, the power measured within `_HOLD_W` of what it was then (a rider pushing
+off from a standstill is replanned), for at most `_HOLD_S` of the ride clock (the W' a
+stop gives back is planned with again at least that often), and only while it is the
+last good solution of the same planner (a re-solved plan, a CP refit or advice on the
+plan end the hold). The rider rolling off is replanned at once.
 
 Determinism: IPOPT's iterates do not depend on the wall clock, but the measured solve
 time and an overrun check against it do. `deterministic` reports `solve_time_s = 0.0`,
