@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import pymap3d
 from scipy.spatial import cKDTree
 
 from itt_planner.calibration.ride_data import MOVING_MPS, CalibrationError, RideSeries
@@ -77,10 +78,9 @@ def ride_altitude_drift(ride: RideSeries) -> Drift | None:
     moving = np.isfinite(ride.lat_deg) & np.isfinite(ride.lon_deg) & (ride.v_mps > MOVING_MPS)
     if moving.sum() < 2:
         return None
-    lat, lon = np.radians(ride.lat_deg[moving]), np.radians(ride.lon_deg[moving])
-    earth_m = 6_371_000.0  # a local flat projection: the pairs are metres apart
-    x = earth_m * (lon - lon.mean()) * np.cos(lat.mean())
-    y = earth_m * (lat - lat.mean())
+    lat, lon = ride.lat_deg[moving], ride.lon_deg[moving]
+    # ENU about the first moving fix, as the calibration's other geometry (aero_design).
+    x, y, _ = pymap3d.geodetic2enu(lat, lon, 0.0, lat[0], lon[0], 0.0)
     return worst_drift(x, y, ride.ele_m[moving], ride.t_s[moving], _APART_S)
 
 
