@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 import pymap3d
+import scipy.ndimage
 
 from itt_planner.course.track_clean import Track
 from itt_planner.course.track_files import Recording
@@ -232,17 +233,9 @@ def find_uturns(x: np.ndarray, y: np.ndarray, dist: np.ndarray, *,
     turn = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
     hit = (turn >= min_deg) & (np.hypot(bx - ax, by - ay) <= gap_m)
     out: list[tuple[float, float]] = []
-    i = 0
-    while i < len(hit):
-        if not hit[i]:
-            i += 1
-            continue
-        j = i
-        while j + 1 < len(hit) and hit[j + 1]:
-            j += 1
-        best = i + int(np.argmax(turn[i:j + 1]))
+    for run in _runs(hit):
+        best = run.start + int(np.argmax(turn[run]))
         out.append((float(u[best + k]), float(turn[best])))
-        i = j + 1
     return out
 
 
@@ -283,17 +276,11 @@ def _route_match(track: Track, dist: np.ndarray, route: Recording, where: str
 
 def _local_minima(d: np.ndarray, within: float) -> list[int]:
     """Index of the closest fix of each pass within `within` of a point."""
-    near = d <= within
-    out: list[int] = []
-    i = 0
-    while i < len(d):
-        if not near[i]:
-            i += 1
-            continue
-        j = i
-        while j + 1 < len(d) and near[j + 1]:
-            j += 1
-        out.append(i + int(np.argmin(d[i:j + 1])))
-        i = j + 1
-    return out
+    return [run.start + int(np.argmin(d[run])) for run in _runs(d <= within)]
+
+
+def _runs(mask: np.ndarray) -> list[slice]:
+    """The runs of consecutive True in a 1D mask, in order."""
+    labels, _ = scipy.ndimage.label(mask)
+    return [run for (run,) in scipy.ndimage.find_objects(labels)]
 
