@@ -12,7 +12,10 @@ Everything rider- or weather-specific (mass, drag, grip, wind, ...) is a symboli
 parameter (`params.ModelParams.vector()`), not a constant, so the compiled integrator of
 the OCPs is reused for every rider and condition. The road enters through four numbers
 per interval (`params.ROAD`): the mean curvature and slope, the heading for the wind
-projection (E3), and the interval length. `rk4_step` integrates one interval.
+projection (E3), and the interval length. `rk4_step` integrates one interval. The 3D
+models ride E3 on the slope of their own path, not the centre line's (`path_slope_rad`,
+a [fix] of model.md's E3: the road is level across its width, so a line inside a bend
+is steeper than the centre line, one outside it flatter).
 
 Non-smooth terms of the physics (`max(W_n, 0)`, `|v - V_w|`, the E9 switch at critical
 power) are smoothed with small, documented widths so a Newton-type solver sees C1
@@ -96,7 +99,11 @@ def _par(p: ca.SX) -> dict[str, ca.SX]:
 def _longitudinal(v: ca.SX, w_n: ca.SX, e_n: ca.SX, psi: ca.SX, beta: ca.SX,
                   q: dict[str, ca.SX], wprime_model: WPrimeModel, eps_wn: float = _EPS_WN,
                   sharpness_w: float = _SHARPNESS_W) -> tuple[ca.SX, ca.SX]:
-    """dv/dt (E3) and dE_n/dt (E9), shared by all models (smoothing widths: module doc)."""
+    """dv/dt (E3) and dE_n/dt (E9), shared by all models (smoothing widths: module doc).
+
+    `beta` is the slope of the rider's own path (`path_slope_rad`; the road's on the
+    centre line and for the 1D model), `psi` the absolute heading.
+    """
     g = GRAVITY_MPS2
     # Guards for wild trial points only (inside the bounds they are inactive): speed in
     # divisions, and the E9 softplus argument that would overflow exp() far beyond W_max.
@@ -107,6 +114,7 @@ def _longitudinal(v: ca.SX, w_n: ca.SX, e_n: ca.SX, psi: ca.SX, beta: ca.SX,
     v_wind = q["wind_e"] * ca.cos(psi) + q["wind_n"] * ca.sin(psi)
     v_air = v - v_wind
     drag = q["k_v"] * v_air * ca.sqrt(v_air * v_air + _EPS_AIR)
+    # E3 [fix]: gravity and rolling on the slope of the path ridden (`path_slope_rad`).
     resist = q["mass"] * g * (q["crr"] * ca.cos(beta) + ca.sin(beta))
     # E3 with the drivetrain losses: power at the wheel = efficiency x crank power.
     v_dot = ((q["efficiency"] * p_plus + p_brake) / (q["mass"] * v) - resist / q["mass"]
@@ -134,6 +142,26 @@ def _kinematics(n: ca.SX, alpha: ca.SX, v: ca.SX, delta_n: ca.SX, kappa: ca.SX,
     s_dot = ca.fmax(v, _V_GUARD_MPS) * ca.cos(alpha) / (1 - n * kappa)  # E8
     yaw_rate = v * ca.tan(delta) / q["wheelbase"]  # E1 [fix]: kinematic bicycle v tan(d)/L
     return s_dot, yaw_rate
+
+
+def path_slope_rad(beta: Any, n: Any, alpha: Any, kappa: Any) -> Any:
+    """Slope angle of the rider's own path (E3 [fix]): `tan(beta_path) = tan(beta)
+    cos(alpha) / (1 - n kappa)`; CasADi expressions or NumPy numbers/arrays alike.
+
+    Why: the road is level across its width (model.md section 1: the altitude `z(s)` is a
+    function of the centre line's arc length only), so a rider at offset `n` heading
+    `alpha` off the road climbs `dz/dt = tan(beta) s_dot = v tan(beta) cos(alpha) /
+    (1 - n kappa)` (E8), while travelling `v` along the path: the grade of the path is
+    `(dz/dt) / v`. On the centre line (`n = alpha = 0`) it is the road's `beta`; inside
+    a bend (`n kappa > 0`) the path is shorter and steeper, outside flatter, and an
+    angled line (`alpha != 0`) flatter. With `beta` in E3 instead, a line inside a bend
+    on a climb climbed less than the road rises (issue 18: worth ~0.6 % on Tokyo 2020).
+    The 1D model on a line course (`course.racing_line.offset_course`) has the same
+    slope: the altitude over the line's own length.
+    """
+    if any(isinstance(a, (ca.SX, ca.MX, ca.DM)) for a in (beta, n, alpha, kappa)):
+        return ca.atan(ca.tan(beta) * ca.cos(alpha) / (1 - n * kappa))
+    return np.arctan(np.tan(beta) * np.cos(alpha) / (1 - np.asarray(n) * kappa))
 
 
 def _command_rate(u: ca.SX, rate_max: ca.SX, full_scale: ca.SX) -> ca.SX:
@@ -175,7 +203,8 @@ def build_3d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
     # E5 [fix]: nonlinear inverted pendulum, steady lean tan(phi) = -(v^2 tan(d)/L)/g.
     phi_ddot = (q["com_height"] * q["mass"] / i_x0) * (
         g * ca.sin(phi) + v * yaw_rate * ca.cos(phi))
-    v_dot, e_dot = _longitudinal(v, w_n, e_n, theta + alpha, beta, q, wprime_model)
+    v_dot, e_dot = _longitudinal(v, w_n, e_n, theta + alpha,
+                                 path_slope_rad(beta, n, alpha, kappa), q, wprime_model)
     x_dot = ca.vertcat(
         v * ca.sin(alpha),  # E2 (time derivative)
         yaw_rate - kappa * s_dot,  # E1
@@ -233,7 +262,8 @@ def build_3d_steady_lean(wprime_model: WPrimeModel = WPrimeModel.SKIBA, *,
     q = _par(p)
 
     s_dot, yaw_rate = _kinematics(n, alpha, v, delta_n, kappa, q)
-    v_dot, e_dot = _longitudinal(v, w_n, e_n, theta + alpha, beta, q, wprime_model,
+    v_dot, e_dot = _longitudinal(v, w_n, e_n, theta + alpha,
+                                 path_slope_rad(beta, n, alpha, kappa), q, wprime_model,
                                  eps_wn, sharpness_w)
     x_dot = ca.vertcat(
         v * ca.sin(alpha),  # E2

@@ -25,7 +25,7 @@ import scipy.sparse.linalg as spla
 from itt_planner.course.geometry import Course
 from itt_planner.errors import SolveError
 from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
-from itt_planner.model.dynamics import CONTROLS_1D, STATES_1D, SpatialModel
+from itt_planner.model.dynamics import CONTROLS_1D, STATES_1D, SpatialModel, path_slope_rad
 from itt_planner.model.params import lateral_limit_mps2
 from itt_planner.model.rider import Rider
 from itt_planner.model.steady import drag_factor_kgpm, resistance_n, steady_speed_mps
@@ -131,10 +131,12 @@ def _pacing_w(flat_w: float, grade: np.ndarray, rider: Rider, conditions: Condit
     return out
 
 
-def _arc_ride(course: Course, nodes: np.ndarray, rider: Rider, conditions: Conditions,
-              v0: float, power_w: np.ndarray, kappa_path: np.ndarray, stretch: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Quasi-steady ride at crank power `power_w` (per node): speed, W_n, E_n at the nodes.
+def _arc_ride(nodes: np.ndarray, rider: Rider, conditions: Conditions, v0: float,
+              power_w: np.ndarray, kappa_path: np.ndarray, beta_path: np.ndarray,
+              stretch: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Quasi-steady ride at crank power `power_w` (per node) on a line of curvature
+    `kappa_path`, slope `beta_path` and length `stretch` per metre of centre line (per
+    node): speed, W_n, E_n at the nodes.
 
     Forward: pedal at `power_w`, gated by the steady lean (C15) and by what the lateral
     force leaves of the grip (C16), capped by `_ARC_GRIP` of the lateral limit in corners.
@@ -148,8 +150,7 @@ def _arc_ride(course: Course, nodes: np.ndarray, rider: Rider, conditions: Condi
     grip_x = conditions.mu_x * g
     lean = _PEDAL_LEAN_SHARE * rider.pedal_lean_max_rad
     kappa = np.abs(kappa_path) + 1e-9
-    beta = course.at("beta_rad", nodes)
-    sin_b, cos_b = np.sin(beta), np.cos(beta)
+    sin_b, cos_b = np.sin(beta_path), np.cos(beta_path)
     v_top = np.sqrt(_ARC_GRIP * lat / kappa)
     ds = np.diff(nodes) * 0.5 * (stretch[1:] + stretch[:-1])
     v = np.empty(len(nodes))
@@ -259,18 +260,21 @@ def arc_guess(model: SpatialModel, course: Course, nodes: np.ndarray, rider: Rid
     short hairpin courses still depends on the guess (24.9-25.6 s over the variants
     tried: local optima of the line through one hairpin), bench/RESULTS.md 2026-12-02."""
     cp = rider.critical_power_w
-    grade = np.tan(course.at("beta_rad", nodes))
     lo, hi = 0.5 * cp, min(rider.max_power_w, cp * 2.0)
     n, alpha, kp = _line(course, nodes)
-    # ds along the line per ds along the centre line (E8 without the speed)
-    stretch = (1 - n * course.at("kappa_per_m", nodes)) / np.cos(alpha)
-    ride = _arc_ride(course, nodes, rider, conditions, v0,
-                     _pacing_w(lo, grade, rider, conditions), kp, stretch)
+    kappa = course.at("kappa_per_m", nodes)
+    # ds along the line per ds along the centre line (E8 without the speed), and the
+    # line's own slope (E3 [fix]): the model rides both.
+    stretch = (1 - n * kappa) / np.cos(alpha)
+    beta = path_slope_rad(course.at("beta_rad", nodes), n, alpha, kappa)
+    grade = np.tan(beta)
+    ride = _arc_ride(nodes, rider, conditions, v0, _pacing_w(lo, grade, rider, conditions),
+                     kp, beta, stretch)
     if np.min(ride[2]) > _ARC_E_MIN:  # bisect on the pacing power: W' spent by the finish
         for _ in range(_ARC_BISECTIONS):
             mid = 0.5 * (lo + hi)
-            trial = _arc_ride(course, nodes, rider, conditions, v0,
-                              _pacing_w(mid, grade, rider, conditions), kp, stretch)
+            trial = _arc_ride(nodes, rider, conditions, v0,
+                              _pacing_w(mid, grade, rider, conditions), kp, beta, stretch)
             if np.min(trial[2]) >= _ARC_E_MIN:
                 lo, ride = mid, trial
             else:

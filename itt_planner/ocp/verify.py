@@ -10,7 +10,8 @@ braked to 0.5 m/s and then "accelerated" to 258 m/s within 10 m came out as
   3D, its line (`n(s)`, `alpha(s)`) are the inputs of a forward simulation of E3 (speed),
   E9 (W') and time, with SciPy's adaptive `solve_ivp` (RK45, rtol 1e-6) - not the
   transcription's RK4 - on the course's own road data (slope, curvature and heading of
-  the course grid, not the mesh's interval means) and with the exact, unsmoothed E3
+  the course grid, not the mesh's interval means; the slope that of the plan's line,
+  `model.dynamics.path_slope_rad`) and with the exact, unsmoothed E3
   (`max(W_n, 0)`, `|v - V_w|`). E9 keeps the model's softplus switch at CP
   (`model.dynamics.E9_SHARPNESS_W`): it is part of the model, not of the transcription, and
   with the exact kink a plan that rides at CP for half an hour differs by kJ (the
@@ -41,7 +42,7 @@ from scipy.integrate import solve_ivp
 
 from itt_planner.course.geometry import Course
 from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
-from itt_planner.model.dynamics import E9_SHARPNESS_W, SpatialModel, rk4_step
+from itt_planner.model.dynamics import E9_SHARPNESS_W, SpatialModel, path_slope_rad, rk4_step
 from itt_planner.model.params import ModelParams
 from itt_planner.model.rider import Rider
 from itt_planner.model.steady import drag_factor_kgpm
@@ -186,9 +187,10 @@ def _replay(plan: Plan, course: Course, rider: Rider, conditions: Conditions,
         al = alpha[k] + f * (alpha[k + 1] - alpha[k])
         j = min(max(int(s / ds_c), 0), n_c - 2)
         fc = s / ds_c - j
-        sin_b = math.sin(math.atan((z[j + 1] - z[j]) / ds_c))
-        cos_b = math.sqrt(1.0 - sin_b * sin_b)
         kap = kappa[j] + fc * (kappa[j + 1] - kappa[j])
+        # E3 on the slope of the plan's own line (`path_slope_rad`), as the models ride.
+        beta = float(path_slope_rad(math.atan((z[j + 1] - z[j]) / ds_c), n, al, kap))
+        sin_b, cos_b = math.sin(beta), math.cos(beta)
         psi = theta[j] + fc * (theta[j + 1] - theta[j]) + al
         s_dot = v * math.cos(al) / (1.0 - n * kap)
         p_plus = p_max * max(wn, 0.0)
