@@ -17,14 +17,16 @@ Course re-solves of the rest of the course are off by default (`--course-replan-
 0`): each waits for a full-course OCP in a worker process (a deterministic replay waits
 for it), which held a replay for minutes on this ride. With `--course-replan-period 30`
 (the session's default) the JSON's `course_replans` says how many were asked for,
-adopted and failed (by solver status), and how many the engine held
+adopted and failed (by solver status), which model each solved (`by_model`:
+`--course-resolve-model`, `live.resolve_model`), and how many the engine held
 (`live.resolve_gate`: backed off while the rider leaves each new plan at once, skipped
 while the rider is stopped). `--plan` replays with a saved full-course plan
 (the cache key hashes the OCP's code, so a change there would solve it again).
 
 Usage: .venv/bin/python bench/bench_horizon_ride.py [--rider RIDER.yaml] (default:
        bench/bologna_rider.yaml) [--ride FILE.tcx] [--model 3d|1d] [--cache-dir DIR]
-       [--stop-s SECONDS] [--course-replan-period 0] [--plan FILE.plan.npz]
+       [--stop-s SECONDS] [--course-replan-period 0] [--course-resolve-model 3d|1d-line]
+       [--plan FILE.plan.npz]
        [--advice-out FILE.npz] (each advice's stamp, s, target power, cue, fallback)
        [--compare-to FILE.npz] (another run's `--advice-out`: the JSON's `advice_delta`
        gives the median and largest |difference| of the target power at the same stamps
@@ -91,6 +93,8 @@ def main() -> None:
     ap.add_argument("--cache-dir", default=".itt_cache")
     ap.add_argument("--stop-s", type=float, default=math.inf, help="replay this much only")
     ap.add_argument("--course-replan-period", type=float, default=0.0)
+    ap.add_argument("--course-resolve-model", default="3d",
+                    help="what a re-solve solves: 3d, or 1d-line (live.resolve_model)")
     ap.add_argument("--plan", default="", help="a saved full-course plan (else the cache's)")
     ap.add_argument("--advice-out", type=Path, default=None, help="save the advice (npz)")
     ap.add_argument("--compare-to", type=Path, default=None, help="advice saved by another run")
@@ -100,7 +104,8 @@ def main() -> None:
         import_ride(args.ride, log)
         config = SessionConfig(course=str(args.ride), rider=args.rider, model=args.model,
                                plan=args.plan, plan_cache=args.cache_dir, deterministic=True,
-                               course_replan_period_s=args.course_replan_period)
+                               course_replan_period_s=args.course_replan_period,
+                               course_resolve_model=args.course_resolve_model)
         engine = build_engine(config)
         session = RideSession(config, engine, keep_advice=True)
         first = last = None
@@ -146,8 +151,8 @@ def main() -> None:
         "solve_time_p95_s": percentile(times, 0.95) if times else None,
         # Of the wall: the horizon solves, the waits for late re-solves of the course (a
         # deterministic replay adopts each `delay_s` of stamps after its request), the rest.
-        "solve_time_total_s": sum(times), "resolve_wait_s": engine.resolve_wait_s,
-        "rest_s": wall - sum(times) - engine.resolve_wait_s,
+        "solve_time_total_s": sum(times), "resolve_wait_s": engine.plans.resolve_wait_s,
+        "rest_s": wall - sum(times) - engine.plans.resolve_wait_s,
         "realtime_factor": ride_s / wall if wall > 0 else None, "wall_s": wall,
         "load_average": os.getloadavg(), "counts": counts,
         "course_replans": {
@@ -158,6 +163,12 @@ def main() -> None:
             "backed_off": counts.get("course_replans_backed_off", 0),
             "skipped_stopped": counts.get("course_replans_skipped_stopped", 0),
             "backoffs": counts.get("course_replan_backoffs", 0),
+            # Which model each re-solve solved (`live.resolve_model`), and the finish each
+            # adopted plan predicted (for comparing the models on the same ride).
+            "by_model": {k.removeprefix("course_replans_model_"): v
+                         for k, v in counts.items() if k.startswith("course_replans_model_")},
+            "line_refused": counts.get("course_replans_line_refused", 0),
+            "adopted_plans": engine.plans.adopted,
             "failed_by_status": {k.removeprefix("course_replan_failed_"): v
                                  for k, v in counts.items()
                                  if k.startswith("course_replan_failed_")}},

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -65,6 +66,11 @@ class RacingLine:
     def road_s(self, s_line_m: np.ndarray) -> np.ndarray:
         """Road (centre-line) arc length of points given by their arc length on the line."""
         out: np.ndarray = np.interp(s_line_m, self.s_line_m, self.road.s_m)
+        return out
+
+    def line_s(self, s_road_m: float | np.ndarray) -> np.ndarray:
+        """Arc length on the line of points given by their road (centre-line) arc length."""
+        out: np.ndarray = np.interp(s_road_m, self.road.s_m, self.s_line_m)
         return out
 
 
@@ -134,22 +140,35 @@ def shortest_line(road: Course, margin_m: float) -> tuple[np.ndarray, np.ndarray
 
 
 def line_course(road: Course, margin_m: float) -> RacingLine:
-    """The shortest line of `road` (`shortest_line`) and the course along it.
+    """The shortest line of `road` (`shortest_line`) and the course along it
+    (`offset_course`)."""
+    n, _, _ = shortest_line(road, margin_m)
+    return offset_course(road, n, "shortest line", {"margin_m": margin_m})
+
+
+def offset_course(road: Course, n_m: np.ndarray, label: str,
+                  build: dict[str, Any] | None = None) -> RacingLine:
+    """The line at offset `n_m` (on the road's grid `road.s_m`, positive left) and the
+    course along it: e.g. the line a 3D plan rides, for a 1D re-solve on it
+    (`live.course_replan`).
 
     The line's course has the road's altitude at each point of the line, and the road's
     width left and right of the line; heading, curvature and slope are those of the line
-    (`Course.from_centerline`), so its slope is the climb over the line's own length.
+    (`Course.from_centerline`), so its slope is the climb over the line's own length. The
+    line's heading relative to the road is that of the offset, atan(n' / (1 - n kappa)).
+    `label` names the line in the course's name; `build` goes into its build record.
     """
-    n, alpha, _ = shortest_line(road, margin_m)
+    n = np.asarray(n_m, float)
+    alpha = np.arctan2(np.gradient(n, road.s_m), 1 - n * road.kappa_per_m)
     x, y, z = road.enu_at(road.s_m, n)
     s_line = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
     # A grid step that ends exactly at the finish (the road's step would cut up to a step).
     steps = max(3, round(s_line[-1] / road.ds_m))
     course = Course.from_centerline(
-        f"{road.name} (shortest line)", x, y, z, origin=road.origin,
+        f"{road.name} ({label})", x, y, z, origin=road.origin,
         closed_loop=road.closed_loop, ds_m=s_line[-1] / steps,
         width_left_m=road.width_left_m - n, width_right_m=road.width_right_m + n,
         source=road.source, source_sha256=road.source_sha256, synthetic=road.synthetic,
-        build={**road.build, "line": {"margin_m": margin_m,
+        build={**road.build, "line": {**(build or {}),
                                       "length_ratio": float(s_line[-1] / road.length_m)}})
     return RacingLine(road, n, alpha, s_line, course)

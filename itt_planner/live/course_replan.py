@@ -24,6 +24,12 @@ point is known (`solve_plan(warm=)`): the point a re-solve returned with its pla
 for the first plan in force the point it was saved or cached with (`plan_point`).
 Without one (an older plan file, a 1D plan) the re-solve starts from the plan's primal
 point alone; which way each one started is counted (`last_warm`).
+
+What a re-solve solves (`CourseReplanSettings.model`, `resolve_model`): the 3D OCP of the
+rest of the road, or with `RESOLVE_1D_LINE` the 1D OCP on the line of the last plan in
+force that was not itself such a re-solve, where no corner ahead needs the 3D. The line
+travels with each job as its offset on the road's grid; the worker builds its course
+once (`resolve_model.LineCache`).
 """
 
 from __future__ import annotations
@@ -40,13 +46,22 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import IO, TYPE_CHECKING, Any
 
+import numpy as np
+
 from itt_planner.course.geometry import Course
 from itt_planner.errors import SolveError
+from itt_planner.live.resolve_model import (
+    RESOLVE_1D_LINE,
+    RESOLVE_3D,
+    RESOLVE_MODELS,
+    LineCache,
+    on_line,
+    solve_rest,
+)
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
 from itt_planner.ocp.course_nlp import PrimalDual, course_layout, start_speed
-from itt_planner.ocp.course_problem import solve_plan_point
 from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.horizon_settings import HorizonSettings
 from itt_planner.ocp.plan import Plan
@@ -72,6 +87,9 @@ class CourseReplanSettings:
             adoption is not following the plans: the least interval between requests
             doubles (`resolve_gate`); a rider who keeps to one this long resets it.
         backoff_max_s: the longest interval the back-off reaches.
+        model: what a re-solve solves: `RESOLVE_3D` (the 3D OCP of the rest of the
+            road) or `RESOLVE_1D_LINE` (the 1D OCP on the line of the last 3D plan in
+            force where its corners allow, else the 3D: `resolve_model`).
     """
 
     period_s: float = 30.0
@@ -83,6 +101,12 @@ class CourseReplanSettings:
     # after the request); 8 periods: a rider who keeps to none is re-solved every 4 min.
     backoff_within_s: float = 30.0
     backoff_max_s: float = 240.0
+    model: str = RESOLVE_3D
+
+    def __post_init__(self) -> None:
+        if self.model not in RESOLVE_MODELS:
+            msg = f"course re-solve model {self.model!r}: choose one of {RESOLVE_MODELS}"
+            raise ValueError(msg)
 
 
 #: States of a re-solve's start the rider's estimate does not measure and the solver
@@ -185,6 +209,9 @@ class CourseReplanner:
         if plan is not None:
             point, self.cold_reason = plan_point(plan, settings.ocp)
             self._point = None if point is None else (plan, point)
+        #: The plan whose line a 1D re-solve rides (`RESOLVE_1D_LINE`): the last plan in
+        #: force that is not itself such a re-solve (the first plan, a 3D plan).
+        self._line_source: Plan | None = None
         #: Whether the last re-solve started was given a primal-dual point.
         self.last_warm = False
         self._last_request_s = -math.inf
@@ -205,7 +232,13 @@ class CourseReplanner:
         self._last_request_s = stamp_s
         warm = self._point[1] if self._point is not None and self._point[0] is guess else None
         self.last_warm = warm is not None
-        job = (self.course, rider, self.conditions, st.ocp, guess, start, warm)
+        line_n = None
+        if st.model == RESOLVE_1D_LINE:
+            if self._line_source is None or not on_line(guess):
+                self._line_source = guess
+            src = self._line_source
+            line_n = np.interp(self.course.s_m, src.s_m, src.n_m)
+        job = (st.model, self.course, rider, self.conditions, st.ocp, guess, start, warm, line_n)
         self._pending = (stamp_s, self._waiter.submit(self._solve_in_worker, job))
         return True
 
@@ -329,13 +362,14 @@ def _worker_main(owner_pid: int) -> None:
     # goes to stderr instead.
     replies = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
+    lines = LineCache()
     while (job := _receive(sys.stdin.buffer)) is not None:
-        course, rider, conditions, settings, guess, start, warm = job
+        model, course, rider, conditions, settings, guess, start, warm, line_n = job
         try:
             free = free_states(start, start_speed(rider, conditions, settings))
-            reply: tuple[Any, ...] = ("ok", solve_plan_point(
-                course, rider, conditions, settings, model="3d", guess=guess, start=start,
-                free_start=free, warm=warm))
+            reply: tuple[Any, ...] = ("ok", solve_rest(
+                model, course, rider, conditions, settings, guess, start, warm, line_n, free,
+                lines))
         except Exception as err:  # noqa: BLE001  (reported: the owner raises it from `take`)
             status = err.status if isinstance(err, SolveError) else "worker_exception"
             reply = ("error", status, f"{type(err).__name__}: {err}")

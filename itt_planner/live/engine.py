@@ -206,9 +206,9 @@ class PacingEngine:
         return self.horizon.solve_times_s
 
     @property
-    def resolve_wait_s(self) -> float:
-        """Wall-clock time updates waited for late re-solves (s), for benchmarks."""
-        return self._plans.resolve_wait_s
+    def plans(self) -> PlanInForce:
+        """The plan in force and its re-solves (waits, adopted plans), for benchmarks."""
+        return self._plans
 
     @property
     def counters(self) -> dict[str, int]:

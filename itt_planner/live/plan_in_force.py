@@ -17,7 +17,9 @@ horizon's terminal treatment otherwise. A re-solve starts warm from the primal-d
 point of the plan in force when there is one (for the first plan, the point it was saved
 or cached with: `course_replan.plan_point`); the counters say which way each started
 (`course_replans_started_warm` / `_cold`) and how many warm runs converged at once
-(`course_replans_warm_converged`; the others went on to the restarts).
+(`course_replans_warm_converged`; the others went on to the restarts), and which model
+each solved (`course_replans_model_3d` / `_1d-line`, `course_replans_line_refused`:
+`resolve_model`).
 
 Not thread-safe: the engine calls it with its locks held.
 """
@@ -75,6 +77,9 @@ class PlanInForce:
         self._stats = stats
         self._on_plan = band_j > 0
         self._replanner = CourseReplanner(course, conditions, replan, deterministic, plan=plan)
+        #: Each adopted re-solve: where it started, what it solved and its predicted
+        #: finish (s from its start), for benchmarks comparing re-solve models.
+        self.adopted: list[dict[str, float | str | int]] = []
         if replan.period_s > 0 and self._replanner.cold_reason:
             log.info("engine: the first re-solve of the course will start from the plan's "
                      "primal point only: %s", self._replanner.cold_reason)
@@ -126,6 +131,14 @@ class PlanInForce:
             return False
         if plan is None:
             return False
+        # Which model the re-solve solved (`resolve_model`): the 3D, or the 1D on the line
+        # of the plan in force; and why the 1D was refused when it was asked for.
+        resolved = plan.meta.get("resolve", {})
+        self._stats[f"course_replans_model_{resolved.get('model', 'unknown')}"] += 1
+        if resolved.get("line_refused"):
+            self._stats["course_replans_line_refused"] += 1
+            log.info("engine: the re-solve from s=%.0f m is 3D: %s", plan.s_m[0],
+                     resolved["line_refused"])
         first = (plan.meta.get("attempts") or [{}])[0]
         if first.get("strategy") == "warm" and first.get("outcome") == PlanStatus.CONVERGED:
             self._stats["course_replans_warm_converged"] += 1  # no restart needed
@@ -140,6 +153,9 @@ class PlanInForce:
         self.cp_w = float(plan.meta["rider"]["critical_power_w"])
         self._on_plan = True  # judged against the full band: the rider started on it
         self._stats["course_replans"] += 1
+        self.adopted.append({"s_m": float(plan.s_m[0]), "model": resolved.get("model", "?"),
+                             "rest_s": plan.finish_time_s, "iterations": plan.iterations,
+                             "solve_time_s": plan.solve_time_s})
         if not plan.converged:
             self._stats["course_replans_unconverged"] += 1
         log.info("engine: new plan %d from s=%.0f m adopted (%s, %d iterations, %.1f s)",

@@ -41,6 +41,9 @@ class SessionConfig:
             itself (`EngineSettings`); 0.0 replans every period.
         course_replan_period_s: off the plan, the rest of the course is re-solved at most
             this often (`CourseReplanSettings`); 0.0 never.
+        course_resolve_model: what such a re-solve solves (`CourseReplanSettings.model`):
+            "3d", or "1d-line" (the 1D on the line of the plan in force where no corner
+            ahead needs the 3D, else the 3D: `live.resolve_model`).
         line_gate_m: the horizon plans from the advised line unless GPS puts the rider
             further off it than this (`EngineSettings`).
         diagnostics_period_s: stamp time between two diagnostics messages.
@@ -59,6 +62,7 @@ class SessionConfig:
     replan_period_s: float = 1.0
     on_plan_band_j: float = 2000.0
     course_replan_period_s: float = 30.0
+    course_resolve_model: str = "3d"
     line_gate_m: float = 5.0
     diagnostics_period_s: float = 1.0
     deterministic: bool = False
@@ -110,6 +114,7 @@ def build_engine(config: SessionConfig) -> PacingEngine:
         deterministic=config.deterministic,
         # The horizon covers the rest of the course from its own length from the finish.
         course_replan=CourseReplanSettings(period_s=config.course_replan_period_s,
-                                           min_remaining_m=config.horizon_m))
+                                           min_remaining_m=config.horizon_m,
+                                           model=config.course_resolve_model))
     return PacingEngine(course, rider, plan, conditions=conditions, planner=planner,
                         settings=settings)

@@ -240,6 +240,13 @@ class RideSession:
         if counts.course_replan_failures:
             out.append(f"{counts.course_replan_failures} of {counts.course_replans_asked} "
                        "re-solves of the rest of the course failed: the plan in force stayed")
+        models = self.engine.counters
+        if models.get("course_replans_model_1d-line", 0):  # `live.resolve_model`
+            out.append(f"{models['course_replans_model_1d-line']} re-solves of the rest of the "
+                       "course were 1D on the line of the plan in force, "
+                       f"{models.get('course_replans_model_3d', 0)} 3D "
+                       f"({models.get('course_replans_line_refused', 0)} where the 1D was "
+                       "refused: a corner ahead needs the 3D)")
         held = counts.course_replans_backed_off + counts.course_replans_skipped_stopped
         if held:  # `live.resolve_gate`
             out.append(f"{held} re-solves of the rest of the course were held "

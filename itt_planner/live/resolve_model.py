@@ -1,0 +1,107 @@
+"""Which model a re-solve of the rest of the course solves, in the worker
+(`course_replan`): the 3D OCP of the road, or the 1D OCP on the line of the plan in force
+where that line's corners allow it (`CourseReplanSettings.model`).
+
+Why the 1D on the line: the 3D re-solves were most of the wall of a deterministic replay
+(each is waited for: bench/RESULTS.md, 2026-12-02, issue 14 item 6), and on the line of
+the 3D plan in force (its own n(s), `racing_line.offset_course`) the 1D model rides the
+same path with the same longitudinal physics at a fraction of the cost: warm, 7-22
+iterations and 0.2-0.9 s CPU against 3D's 11-40 and 1-6 s on the Zwift Bologna ride.
+Why only where the corners allow: the 1D model ignores them (model.md section 6); on
+the technical first 8 km of that ride its plans took the hairpins at up to 3 g. So a
+1D plan is used only if it fits C15 and C16 at the steady lean its speed asks on the
+line (`line_plan.line_corners`); where the plan in force has a corner ahead that it
+leans through beyond the pedalling limit, the 1D is not even tried (`corner_ahead`).
+Otherwise the re-solve is the 3D one. Each plan says which it is
+(`meta["resolve"]`: the model, the line, why a 1D plan was refused), and the engine
+counts them (`plan_in_force`).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+
+import numpy as np
+
+from itt_planner.course.geometry import Course
+from itt_planner.course.racing_line import RacingLine, offset_course
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.model.rider import Rider
+from itt_planner.ocp.course_nlp import PrimalDual
+from itt_planner.ocp.course_problem import solve_plan_point
+from itt_planner.ocp.course_settings import OcpSettings, Start
+from itt_planner.ocp.line_plan import line_corners, solve_rest_on_line
+from itt_planner.ocp.plan import Plan
+
+log = logging.getLogger(__name__)
+
+#: What a re-solve solves (`CourseReplanSettings.model`): the 3D OCP always, or the 1D
+#: on the line of the plan in force where its corners allow (module docstring).
+RESOLVE_3D = "3d"
+RESOLVE_1D_LINE = "1d-line"
+RESOLVE_MODELS = (RESOLVE_3D, RESOLVE_1D_LINE)
+def on_line(plan: Plan) -> bool:
+    """Whether `plan` is a 1D re-solve on a plan's line (`solve_rest_on_line`)."""
+    return bool(plan.meta.get("line", {}).get("kind") == "plan")
+
+
+def corner_ahead(plan: Plan, s_m: float, rider: Rider) -> str:
+    """Why the 1D on `plan`'s line is not worth trying from `s_m` ("" if it is): a corner
+    ahead where `plan` leans beyond the pedalling limit C15 (its lateral acceleration
+    above g tan(phi_pedal)). The 1D model rides no corner slower than the plan and does
+    not know that limit: on the Zwift Bologna ride every 1D re-solve with such a corner
+    ahead failed `line_corners` (C16 at up to 3 g on the first 8 km, C15 at 14.98 km)."""
+    ahead = plan.s_m >= s_m
+    ay = np.abs(plan.ay_mps2[ahead])
+    limit = GRAVITY_MPS2 * np.tan(rider.pedal_lean_max_rad)
+    if len(ay) == 0 or np.max(ay) < limit:
+        return ""
+    i = int(np.argmax(ay))
+    return (f"not tried: the plan in force leans beyond the pedalling limit at "
+            f"s = {plan.s_m[ahead][i]:.0f} m ({ay[i]:.1f} m/s^2)")
+
+
+class LineCache:
+    """The line of the 1D re-solves as a course, built once per line (the worker keeps
+    it: the same line for every re-solve after a 3D plan)."""
+
+    def __init__(self) -> None:
+        self._key = b""
+        self._line: RacingLine | None = None
+
+    def get(self, road: Course, n_m: np.ndarray) -> RacingLine:
+        key = np.asarray(n_m, float).tobytes()
+        if self._line is None or key != self._key:
+            self._key, self._line = key, offset_course(road, n_m, "line of the plan in force")
+        return self._line
+
+
+def solve_rest(model: str, course: Course, rider: Rider, conditions: Conditions,
+               settings: OcpSettings, guess: Plan, start: Start, warm: PrimalDual | None,
+               line_n: np.ndarray | None, free_3d: Sequence[str], lines: LineCache
+               ) -> tuple[Plan, PrimalDual | None]:
+    """The rest of `course` from `start` with `model` (module docstring): the plan (its
+    `meta["resolve"]`) and, if it converged, its primal-dual point. `warm`: the point of
+    `guess` (a 1D point if `guess` is `on_line`, else a 3D one); `line_n`: the line's
+    offset on the road's grid (`RESOLVE_1D_LINE`); `free_3d`: the states a 3D re-solve
+    leaves to the solver (`course_replan.free_states`)."""
+    refused = ""
+    if model == RESOLVE_1D_LINE and line_n is not None:
+        refused = corner_ahead(guess, start.s_m, rider)
+        if not refused:
+            line = lines.get(course, line_n)
+            plan, point = solve_rest_on_line(line, rider, conditions, settings, guess=guess,
+                                             start=start, warm=warm if on_line(guess) else None)
+            plan, refused = line_corners(plan, line, rider, conditions)
+            if plan.converged and not refused:
+                plan.meta["resolve"] = {"model": RESOLVE_1D_LINE, "line": line.course.name}
+                return plan, point
+            refused = refused or f"the 1D plan on the line is {plan.status}"
+            log.info("course re-solve from s=%.0f m: the 1D plan on the line refused (%s); "
+                     "solving the 3D", start.s_m, refused)
+    plan, point = solve_plan_point(course, rider, conditions, settings, model="3d",
+                                   guess=guess, start=start, free_start=free_3d,
+                                   warm=None if on_line(guess) else warm)
+    plan.meta["resolve"] = {"model": RESOLVE_3D, "line_refused": refused}
+    return plan, point

@@ -1,0 +1,147 @@
+"""Re-solves of the rest of the course with the 1D model on the line of the plan in
+force (`live.resolve_model`, `ocp.line_plan.solve_rest_on_line`, `racing_line.offset_course`):
+a verified plan on the road's arc length with the line's offset, warm from the previous
+such re-solve; refused where a corner needs the 3D (C15/C16 at the steady lean), and
+through the worker process with the model each re-solve used stated."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from itt_planner.course.builder import build_course
+from itt_planner.course.geometry import Course
+from itt_planner.course.racing_line import offset_course
+from itt_planner.live.course_replan import CourseReplanner, CourseReplanSettings
+from itt_planner.live.resolve_model import (
+    RESOLVE_1D_LINE,
+    LineCache,
+    corner_ahead,
+    on_line,
+    solve_rest,
+)
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.model.rider import PRESETS
+from itt_planner.ocp.course_settings import OcpSettings, Start
+from itt_planner.ocp.line_plan import line_corners, solve_plan_on_line, solve_rest_on_line
+from itt_planner.ocp.plan import Plan
+
+RIDER = PRESETS["paper"]
+START_M = 400.0
+
+
+def _bend(radius_m: float) -> Course:
+    """400 m straight at +2 %, a 90-degree left bend of `radius_m`, 500 m straight at -1 %."""
+    return build_course({"name": f"bend-{radius_m:.0f}", "segments": [
+        {"type": "straight", "length_m": 400.0, "grade_pct": 2.0},
+        {"type": "arc", "angle_deg": 90, "radius_m": radius_m, "direction": "left"},
+        {"type": "straight", "length_m": 500.0, "grade_pct": -1.0}]})
+
+
+GENTLE = _bend(400.0)
+
+
+@pytest.fixture(scope="module")
+def plan() -> Plan:
+    """The plan in force: the 1D plan on the shortest line (a line off the centre)."""
+    plan = solve_plan_on_line(GENTLE, RIDER)
+    assert plan.converged
+    assert np.max(np.abs(plan.n_m)) > 1.0  # it cuts the bend
+    return plan
+
+
+def _start(plan: Plan, s_m: float = START_M) -> Start:
+    """A rider 1.5 kJ short of the plan's W' and 5 % slower, where the plan's line is."""
+    return Start(s_m=s_m, state={"v": 0.95 * float(plan.at("v_mps", s_m)),
+                                 "w_n": float(plan.at("w_n", s_m)),
+                                 "e_n": float(plan.at("e_n", s_m)) - 1500.0 / RIDER.w_prime_j})
+
+
+def test_offset_course_maps_both_ways(plan: Plan) -> None:
+    n = np.interp(GENTLE.s_m, plan.s_m, plan.n_m)
+    line = offset_course(GENTLE, n, "test line")
+    assert line.length_ratio < 1.0  # inside of the bend: shorter
+    s = np.array([0.0, 250.0, 700.0, GENTLE.length_m])
+    assert line.road_s(line.line_s(s)) == pytest.approx(s, abs=1e-6)
+    assert line.course.length_m == pytest.approx(line.s_line_m[-1], abs=1e-6)
+
+
+def test_rest_on_the_plans_line_is_verified_on_the_road_and_warm(plan: Plan) -> None:
+    line = offset_course(GENTLE, np.interp(GENTLE.s_m, plan.s_m, plan.n_m), "plan line")
+    first, point = solve_rest_on_line(line, RIDER, Conditions(), OcpSettings(), guess=plan,
+                                      start=_start(plan))
+    assert first.converged and first.meta["success"], first.meta["attempts"]
+    assert point is not None
+    assert first.meta["line"]["kind"] == "plan" and on_line(first)
+    # On the road's arc length from where the rider is, with the line's offset.
+    assert first.s_m[0] == pytest.approx(START_M, abs=1e-6)
+    assert first.s_m[-1] == pytest.approx(GENTLE.length_m, abs=1e-3)
+    assert first.n_m == pytest.approx(np.interp(first.s_m, plan.s_m, plan.n_m), abs=0.05)
+    assert first.meta["start"]["s_m"] == START_M
+    assert first.w_prime_j[0] == pytest.approx(float(plan.at("w_prime_j", START_M)) - 1500.0,
+                                               abs=1.0)
+    # The rider is short of W' and slower: the rest takes longer than the plan's rest.
+    assert first.finish_time_s > plan.finish_time_s - float(plan.at("t_s", START_M))
+    fitted, why = line_corners(first, line, RIDER, Conditions())
+    assert why == ""
+    assert np.max(fitted.friction_use) <= 1.0
+    # The next re-solve on the same line resumes from that point.
+    again, _ = solve_rest_on_line(line, RIDER, Conditions(), OcpSettings(), guess=first,
+                                  start=_start(first, 600.0), warm=point)
+    assert again.converged
+    assert again.meta["attempts"][0]["strategy"] == "warm"
+
+
+def test_a_tight_corner_refuses_the_1d() -> None:
+    tight = _bend(20.0)
+    plan = solve_plan_on_line(tight, RIDER)
+    line = offset_course(tight, np.interp(tight.s_m, plan.s_m, plan.n_m), "plan line")
+    rest, _ = solve_rest_on_line(line, RIDER, Conditions(), OcpSettings(), guess=plan,
+                                 start=_start(plan, 200.0))
+    assert rest.converged  # a 1D optimum, verified by the 1D replay...
+    fitted, why = line_corners(rest, line, RIDER, Conditions())
+    assert why.startswith(("C15", "C16")), why  # ...that no rider can ride round 20 m
+    apex = np.argmax(np.abs(fitted.ay_mps2))
+    assert abs(fitted.ay_mps2[apex]) > GRAVITY_MPS2 * np.tan(RIDER.pedal_lean_max_rad)
+
+
+def test_corner_ahead_of_the_plan_in_force(plan: Plan) -> None:
+    corner = np.where(np.abs(plan.s_m - 500.0) < 20.0, 6.0, 0.5)  # 6 m/s^2 at 500 m
+    leaning = dataclasses.replace(plan, ay_mps2=corner)
+    assert corner_ahead(leaning, 300.0, RIDER).startswith("not tried")
+    assert corner_ahead(leaning, 600.0, RIDER) == ""  # behind the rider
+
+
+def test_solve_rest_states_the_model(plan: Plan) -> None:
+    n = np.interp(GENTLE.s_m, plan.s_m, plan.n_m)
+    rest, point = solve_rest(RESOLVE_1D_LINE, GENTLE, RIDER, Conditions(), OcpSettings(),
+                             plan, _start(plan), None, n, (), LineCache())
+    assert rest.converged and point is not None
+    assert rest.meta["resolve"]["model"] == RESOLVE_1D_LINE
+
+
+def test_worker_resolves_on_the_line(plan: Plan) -> None:
+    rp = CourseReplanner(GENTLE, Conditions(), CourseReplanSettings(
+        period_s=30.0, delay_s=15.0, min_remaining_m=200.0, model=RESOLVE_1D_LINE),
+        deterministic=True, plan=plan)
+    try:
+        assert rp.request(100.0, RIDER, plan, _start(plan))
+        assert rp.take(110.0) is None  # due 15 s of stamps after the request
+        rest = rp.take(115.0)
+        assert rest is not None and rest.converged
+        assert rest.meta["resolve"]["model"] == RESOLVE_1D_LINE
+        # The next re-solve rides the same line, warm from this one's point.
+        assert rp.request(200.0, RIDER, rest, _start(rest, 700.0))
+        assert rp.last_warm
+        nxt = rp.take(215.0)
+        assert nxt is not None and nxt.meta["resolve"]["model"] == RESOLVE_1D_LINE
+        assert nxt.n_m == pytest.approx(np.interp(nxt.s_m, plan.s_m, plan.n_m), abs=0.05)
+    finally:
+        rp.close()
+
+
+def test_settings_reject_an_unknown_model() -> None:
+    with pytest.raises(ValueError, match="re-solve model"):
+        CourseReplanSettings(model="2d")
