@@ -5,16 +5,19 @@ where that line's corners allow it (`CourseReplanSettings.model`).
 Why the 1D on the line: the 3D re-solves were most of the wall of a deterministic replay
 (each is waited for: bench/RESULTS.md, 2026-12-02, issue 14 item 6), and on the line of
 the 3D plan in force (its own n(s), `racing_line.offset_course`) the 1D model rides the
-same path with the same longitudinal physics at a fraction of the cost: warm, 7-22
-iterations and 0.2-0.9 s CPU against 3D's 11-40 and 1-6 s on the Zwift Bologna ride.
-Why only where the corners allow: the 1D model ignores them (model.md section 6); on
-the technical first 8 km of that ride its plans took the hairpins at up to 3 g. So a
+same path with the same longitudinal physics at a fraction of the cost: on the 13
+re-solves of the Zwift Bologna ride, warm, 7-22 iterations and 0.15-0.9 s CPU where the
+3D took 8-63 and 0.4-8.5 s from the same starts (at the 8.2 km stop 270-292 and 4.4-5.6 s
+against 64-73 and 9.0-9.6 s). Why only where the corners allow: the 1D model ignores
+them (model.md section 6); on the technical first 8 km of that ride its plans took the
+hairpins at up to 3 g and predicted the rest 9-17 s faster than the 3D. So a
 1D plan is used only if it fits C15 and C16 at the steady lean its speed asks on the
 line (`line_plan.line_corners`); where the plan in force has a corner ahead that it
 leans through beyond the pedalling limit, the 1D is not even tried (`corner_ahead`).
 Otherwise the re-solve is the 3D one. Each plan says which it is
 (`meta["resolve"]`: the model, the line, why a 1D plan was refused), and the engine
-counts them (`plan_in_force`).
+counts them (`plan_in_force`). On that ride the corners let the 1D solve 1 of the 13
+(the last, 1 km from the finish): the default stays `RESOLVE_3D`.
 """
 
 from __future__ import annotations
