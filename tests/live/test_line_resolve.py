@@ -7,6 +7,7 @@ through the worker process with the model each re-solve used stated."""
 from __future__ import annotations
 
 import dataclasses
+from collections import Counter
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from itt_planner.course.builder import build_course
 from itt_planner.course.geometry import Course
 from itt_planner.course.racing_line import offset_course
 from itt_planner.live.course_replan import CourseReplanner, CourseReplanSettings
+from itt_planner.live.plan_in_force import PlanInForce
 from itt_planner.live.resolve_model import (
     RESOLVE_1D_LINE,
     LineCache,
@@ -145,3 +147,24 @@ def test_worker_resolves_on_the_line(plan: Plan) -> None:
 def test_settings_reject_an_unknown_model() -> None:
     with pytest.raises(ValueError, match="re-solve model"):
         CourseReplanSettings(model="2d")
+
+
+def test_plan_in_force_counts_the_model(plan: Plan, monkeypatch: pytest.MonkeyPatch) -> None:
+    n = np.interp(GENTLE.s_m, plan.s_m, plan.n_m)
+    rest, _ = solve_rest(RESOLVE_1D_LINE, GENTLE, RIDER, Conditions(), OcpSettings(),
+                         plan, _start(plan), None, n, (), LineCache())
+    stats: Counter[str] = Counter()
+    plans = PlanInForce(GENTLE, plan, RIDER.critical_power_w, band_j=2000.0,
+                        conditions=Conditions(), replan=CourseReplanSettings(period_s=0.0),
+                        deterministic=True, stats=stats)
+    try:
+        monkeypatch.setattr(plans._replanner, "take", lambda _stamp_s: rest)  # a done re-solve
+        assert plans.take(100.0)
+        assert plans.plan is rest and plans.version == 1
+        assert stats["course_replans_model_1d-line"] == 1
+        assert stats["course_replans_line_refused"] == 0
+        assert plans.adopted == [{"s_m": START_M, "model": RESOLVE_1D_LINE,
+                                  "rest_s": rest.finish_time_s, "iterations": rest.iterations,
+                                  "solve_time_s": rest.solve_time_s}]
+    finally:
+        plans.close()
