@@ -35,8 +35,9 @@ from itt_planner.course.geometry import Course
 from itt_planner.errors import SolveError
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
+from itt_planner.ocp.course_budget import Budget
 from itt_planner.ocp.course_nlp import PrimalDual, check_inputs, cut_nodes, start_speed
-from itt_planner.ocp.course_restarts import Budget, CourseSolve
+from itt_planner.ocp.course_restarts import CourseSolve
 from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.guess import speed_spacing_cap
 from itt_planner.ocp.plan import Plan

@@ -20,12 +20,19 @@ start may use `_FIRST_SHARE` of it):
   active arcs (C11, C15, C16, W' = 0) at about half the cost per iteration, which a
   cold start on the full mesh forms a node or two per iteration (2026-12-01, H5). If
   the coarse run does not converge, the cold start on the full mesh as before;
+- windows first (3D, cold as above, a course longer than `OcpSettings.window_min_m`):
+  the 1D plan, then the 3D model on overlapping windows of ~15 km from it, then a run
+  on the full mesh resumed from their stitched primal-dual point (`course_windows`,
+  why there). If the 1D plan or a window does not converge, the
+  coarse mesh first or the cold start as without;
 - early failure (`solver.SolveResult.gave_up_early`): the same start with a smaller
   bound push (on short courses the 3D model ended in Restoration_Failed with IPOPT's
   default push and converged in 39-64 iterations with 1e-4);
-- 1D: a cold start on a mesh of half the spacing (the 1D model on the 9 km hilly route
-  of bench_convergence with 20 m intervals stopped at 569 iterations; restarted on
-  10 m it converged in 65);
+- 1D: a cold start with the adaptive barrier never falling back to its monotone mode
+  (`solver.full_course_solver(never_monotone=True)`: the Shanghai ride's barrier
+  collapse, why there), then a cold start on a mesh of half the spacing (the 1D model on
+  the 9 km hilly route of bench_convergence with 20 m intervals stopped at 569
+  iterations; restarted on 10 m it converged in 65);
 - 3D stopped by its share of the budget: resume from the run's last primal-dual point
   (multipliers passed back, small barrier, no push off the bounds: the solver's resume
   option set, `full_course_solver(resume=True)`) with `_RESUME_SHARE` of what is left.
@@ -60,11 +67,10 @@ start may use `_FIRST_SHARE` of it):
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
-import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
-from typing import Any
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
@@ -72,16 +78,23 @@ from itt_planner.course.geometry import Course
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
 from itt_planner.model.wprime import WPrimeModel
+from itt_planner.ocp.course_budget import Budget
 from itt_planner.ocp.course_nlp import (
     CourseNlp,
     PrimalDual,
     course_nlp,
     cut_nodes,
-    cut_point,
     mesh_substeps,
     to_plan,
 )
 from itt_planner.ocp.course_settings import OcpSettings, Start
+from itt_planner.ocp.course_windows import (
+    end_reserve,
+    plan_between,
+    plan_windows,
+    stitch,
+    window_start,
+)
 from itt_planner.ocp.guess import plan_spacing_cap
 from itt_planner.ocp.mesh import build_mesh
 from itt_planner.ocp.plan import Plan
@@ -89,17 +102,11 @@ from itt_planner.ocp.solver import (
     INVALID_RAW_STATUS,
     PlanStatus,
     SolveResult,
-    full_course_solver,
 )
 from itt_planner.ocp.verify import Verification, verify_plan
 
 log = logging.getLogger(__name__)
 
-#: IPOPT's bound_push = bound_frac (how far the initial point is moved inside its
-#: bounds): IPOPT's default 1e-2 first. 1e-4 took 116 instead of 75 iterations on
-#: verona-like 3D (and ended 0.08 % slower, in another local optimum), and 127 instead of
-#: 61 on rovereto-like 1D (34 instead of 43 on verona-like 1D).
-_BOUND_PUSH = 1e-2
 #: A solve that gave up early (`SolveResult.gave_up_early`) is restarted once with this
 #: push: on short courses (0.6-0.8 km, typical and climber riders) the 3D model ended in
 #: Restoration_Failed with the default push and converged in 39-64 iterations with it.
@@ -123,60 +130,6 @@ _WARM_SHARE = 0.3
 _RELAXED_TOL = 1e-4
 #: Mesh refinements after a failed verification (module docstring).
 _REFINE_ROUNDS = 2
-
-
-@dataclass
-class Budget:
-    """The solver runs of one `solve_plan` call, sharing its iteration and CPU budget."""
-
-    max_iter: int
-    seconds: float
-    cpu_start: float
-    tol: float
-    label: str
-    attempts: list[dict[str, Any]] = field(default_factory=list)
-
-    def left(self) -> tuple[int, float]:
-        used = sum(a["iterations"] for a in self.attempts)
-        return self.max_iter - used, self.seconds - (time.process_time() - self.cpu_start)
-
-    def usable(self) -> bool:
-        """Enough left for another attempt."""
-        its, secs = self.left()
-        return its > 10 and secs > 1.0
-
-    def run(self, strategy: str, pr: CourseNlp, w0: np.ndarray, share: float = 1.0,
-            bound_push: float = _BOUND_PUSH, acceptable_tol: float | None = None,
-            resume: SolveResult | None = None) -> SolveResult:
-        """One solver run from `w0` with `share` of what is left of the budget; `resume`:
-        a previous run on `pr` to continue from its primal-dual point (its multipliers
-        too) instead of a fresh start."""
-        its, secs = self.left()
-        t0 = time.perf_counter()
-        solver = full_course_solver(pr.tr, max_iter=int(its * share),
-                                    max_cpu_time_s=secs * share, tol=self.tol,
-                                    bound_push=bound_push, acceptable_tol=acceptable_tol,
-                                    resume=resume is not None)
-        res = solver.solve(w0, pr.p, pr.lbw, pr.ubw,
-                           lam_x0=None if resume is None else resume.lam_x,
-                           lam_g0=None if resume is None else resume.lam_g)
-        # "outcome" is what the attempt means (`PlanStatus`), "status" the solver's words.
-        self.attempts.append({"strategy": strategy, "status": res.raw_status,
-                              "outcome": res.status.value, "iterations": res.iterations,
-                              "n_nodes": len(pr.nodes),
-                              "time_s": round(time.perf_counter() - t0, 3)})
-        if not res.converged:
-            log.info("%s, %s: %s after %d iterations", self.label, strategy, res.raw_status,
-                     res.iterations)
-        return res
-
-    def resume_at(self, strategy: str, pr: CourseNlp, point: PrimalDual, share: float
-                  ) -> SolveResult:
-        """One run on `pr` resumed from `point`, a converged run's primal-dual point on
-        another mesh, moved onto `pr`'s nodes (`course_nlp.cut_point`: `pr.nodes` are
-        `point.nodes` cut and split by `course_nlp.cut_nodes`), node 0 at `pr`'s start."""
-        cut = cut_point(pr.tr, point, pr.nodes, pr.w_guess[: pr.tr.layout.nx])
-        return self.run(strategy, pr, cut.w, share=share, resume=cut)
 
 
 @dataclass
@@ -234,7 +187,9 @@ class CourseSolve:
         the NLP the result belongs to, and the result."""
         run, usable = self.budget.run, self.budget.usable
         cold = prob.w_guess
-        res = self._from_coarse(prob) if self._coarse_pays(prob) else None
+        res = self._from_windows(prob) if self._windows_pay(prob) else None
+        if res is None and self._coarse_pays(prob):
+            res = self._from_coarse(prob)
         if res is None or res.status is PlanStatus.FAILED:
             # The first start gets `_FIRST_SHARE` of the budget, so that a restart has some left.
             res = run("guess" if self.guess is not None else "cold", prob, cold,
@@ -244,6 +199,8 @@ class CourseSolve:
         if res.status is PlanStatus.CAPPED and self.model == "3d" and usable():
             # Capped 3D runs were mostly still converging: go on from where it stopped.
             res = run("resume", prob, res.w, share=_RESUME_SHARE, resume=res)
+        if not res.converged and self.model == "1d" and usable():
+            res = run("never-monotone barrier", prob, cold, share=0.5, never_monotone=True)
         if not res.converged and self.model == "1d" and usable():
             prob = self.nlp(self.mesh(cap, 0.5), self.guess)
             res = run("finer mesh", prob, prob.w_guess, share=0.7)
@@ -255,35 +212,96 @@ class CourseSolve:
                       acceptable_tol=_RELAXED_TOL)
         return prob, res
 
-    def _coarse_pays(self, prob: CourseNlp) -> bool:
-        """A cold 3D start from the default guess on a mesh of more than
-        `_COARSE_MIN_NODES` nodes (module docstring: coarse mesh first)."""
+    def _coarse_pays(self, prob: CourseNlp, min_nodes: int | None = None) -> bool:
+        """A cold 3D start from the default guess on a mesh of more than `min_nodes`
+        (default `_COARSE_MIN_NODES`) nodes (module docstring: coarse mesh first)."""
         return (self.model == "3d" and self.guess is None and self.start is None
-                and len(prob.nodes) > _COARSE_MIN_NODES)
+                and len(prob.nodes) > (_COARSE_MIN_NODES if min_nodes is None else min_nodes))
 
-    def _from_coarse(self, prob: CourseNlp) -> SolveResult | None:
-        """Solve on every other node of `prob`'s mesh (and its last), then resume on
-        `prob` from that point (`Budget.resume_at`); None when the coarse run did not
-        converge (the caller then starts cold on `prob`)."""
+    def _windows_pay(self, prob: CourseNlp) -> bool:
+        """Windows first (module docstring): a cold 3D start on a long course."""
+        return (self._coarse_pays(prob, 0)
+                and prob.nodes[-1] - prob.nodes[0] > self.settings.window_min_m)
+
+    def _from_windows(self, prob: CourseNlp) -> SolveResult | None:
+        """Solve the 1D plan, then the 3D model on overlapping windows from it
+        (`course_windows`), then resume on `prob` from their stitched point; None when
+        the 1D plan or a window did not converge (the caller then goes on as without)."""
+        base = self._plan_1d("1d plan for the windows", 0.25)
+        if not base.meta.get("success"):
+            return None
+        st, run, usable = self.settings, self.budget.run, self.budget.usable
+        wins = plan_windows(prob.nodes, st.window_m, st.window_overlap_m)
+        runs: list[SolveResult] = []
+        win_nlp: CourseNlp | None = None
+        for k, win in enumerate(wins):
+            if not usable():
+                return None
+            nodes = prob.nodes[win.first: win.last + 1]
+            start = None if win_nlp is None else window_start(
+                win_nlp.tr.model.states, win_nlp.tr.layout, runs[-1],
+                win.first - wins[k - 1].first, float(nodes[0]))
+            reserve = end_reserve(base, float(nodes[-1]), self.rider.w_prime_j,
+                                  st.e_final_min, last=k == len(wins) - 1)
+            make = functools.partial(self._window_nlp, base, reserve, start)
+            win_nlp = make(nodes)
+            label = f"window {k + 1}/{len(wins)} ({nodes[0] / 1e3:.1f}-{nodes[-1] / 1e3:.1f} km)"
+            # Each window gets an equal share of what is left, one share kept for the polish;
+            # a window as long as Bologna from the coarse mesh first, as a course would.
+            share = 1.0 / (len(wins) - k + 1)
+            res = (self._from_coarse(win_nlp, make, f"{label}: ", 0.6 * share, share)
+                   if len(nodes) > _COARSE_MIN_NODES else None)
+            if res is None or res.status is PlanStatus.FAILED:
+                res = run(label, win_nlp, win_nlp.w_guess, share=share)
+            if res.status is PlanStatus.CAPPED and usable():
+                res = run(f"{label}, resumed", win_nlp, res.w, share=0.5, resume=res)
+            if not res.converged:
+                return None
+            runs.append(res)
+        point = stitch(prob.tr.layout, wins, runs)
+        return run("polish from the windows", prob, point.w, share=_FIRST_SHARE, resume=point)
+
+    def _from_coarse(self, prob: CourseNlp, make: Callable[[np.ndarray], CourseNlp] | None = None,
+                     label: str = "", share: float = _COARSE_SHARE,
+                     fine_share: float = _FIRST_SHARE) -> SolveResult | None:
+        """Solve on every other node of `prob`'s mesh (and its last; the NLP from `make`,
+        default this solve's own from its default guess), then resume on `prob` from that
+        point (`Budget.resume_at`); None when the coarse run did not converge (the caller
+        then starts cold on `prob`). `label` prefixes the attempts' names."""
         nodes = np.append(prob.nodes[:-1:2], prob.nodes[-1])
-        coarse = self.nlp(nodes, None)
-        res = self.budget.run("coarse mesh", coarse, coarse.w_guess, share=_COARSE_SHARE)
+        coarse = self.nlp(nodes, None) if make is None else make(nodes)
+        res = self.budget.run(f"{label}coarse mesh", coarse, coarse.w_guess, share=share)
         if not res.converged or res.lam_x is None or res.lam_g is None or not self.budget.usable():
             return None
         point = PrimalDual(nodes, res.w, res.lam_x, res.lam_g)
-        return self.budget.resume_at("from the coarse mesh", prob, point, share=_FIRST_SHARE)
+        return self.budget.resume_at(f"{label}from the coarse mesh", prob, point,
+                                     share=fine_share)
 
-    def _warm_from_1d(self, prob: CourseNlp, res: SolveResult) -> SolveResult:
-        """Solve the 1D plan (a third of the CPU left at most) and start from it."""
+    def _window_nlp(self, base: Plan, reserve: float, start: Start | None, nodes: np.ndarray
+                    ) -> CourseNlp:
+        """A window's NLP on `nodes`: from `start` (the course's start if None), leaving
+        `reserve` of W' at its end, from the 1D plan `base` as its guess."""
+        return course_nlp(self.course, self.rider, self.conditions,
+                          dataclasses.replace(self.settings, e_final_min=reserve), "3d", nodes,
+                          self.v0 if start is None else start.state["v"], start,
+                          plan_between(base, float(nodes[0]), float(nodes[-1])))
+
+    def _plan_1d(self, strategy: str, share: float) -> Plan:
+        """The 1D plan of the same solve (`share` of the CPU left at most), an attempt."""
         _, secs = self.budget.left()
         st, left_m = self.settings, self.course.length_m - self.start_m
         base = self.solve_1d(dataclasses.replace(
-            st, max_iter=None, max_cpu_time_s=min(secs / 3, st.budget("1d", left_m)[1])))
+            st, max_iter=None, max_cpu_time_s=min(secs * share, st.budget("1d", left_m)[1])))
         self.budget.attempts.append({
-            "strategy": "1d plan for a warm start", "status": base.solver_status,
+            "strategy": strategy, "status": base.solver_status,
             "outcome": PlanStatus.of(base.solver_status).value,
             "iterations": base.iterations, "n_nodes": base.n_nodes,
             "time_s": round(base.solve_time_s, 3)})
+        return base
+
+    def _warm_from_1d(self, prob: CourseNlp, res: SolveResult) -> SolveResult:
+        """Solve the 1D plan (a third of the CPU left at most) and start from it."""
+        base = self._plan_1d("1d plan for a warm start", 1 / 3)
         if base.meta.get("success") and self.budget.usable():
             warm = self.nlp(prob.nodes, base)
             return self.budget.run("warm from 1d", warm, warm.w_guess)

@@ -34,6 +34,15 @@ class OcpSettings:
         jit: compile the stage kernels to C with the machine's compiler (cached).
         verify: replay every plan (`verify.verify_plan`); off only for benchmarks of
             the solver alone.
+        window_min_m, window_m, window_overlap_m: a cold 3D solve of a course longer
+            than `window_min_m` first solves overlapping windows of about `window_m`
+            (each `window_overlap_m` into the next) and polishes their stitched point on
+            the full mesh (`course_windows`; bench/RESULTS.md, 2026-12-02, helper C). A
+            length, not a node count: the iterations grow with the course (the active
+            arcs to form), not with the mesh (rovereto-like at half spacing, 17,133
+            nodes: 187 iterations). 45 km: St John's (41.3 km) converges cold in 145
+            iterations, the 57 km Ardennes ride needed 487, the 80 km Shanghai ride
+            stopped at its budget after 571.
     """
 
     h_min_m: float = 1.0
@@ -54,16 +63,23 @@ class OcpSettings:
     tol: float = 1e-6
     jit: bool = True
     verify: bool = True
+    window_min_m: float = 45_000.0
+    window_m: float = 15_000.0
+    window_overlap_m: float = 2_000.0
 
     def budget(self, model: str, length_m: float) -> tuple[int, float]:
         """(iterations, seconds) for one solve of `length_m` metres with `model`.
 
-        Iterations scale with the course: 3D 500 + 40 per km (the 17 km Bologna course
-        needed ~500 with the old guess), 1D 600 + 40 per km (at double spacing the 1D
+        Iterations scale with the course: 3D 500 + 80 per km (the 17 km Bologna course
+        needed ~500 with the old guess; 40 per km before: the 80 km Shanghai ride's
+        windows, `window_min_m`, ran 2,566 iterations of 3,701, a hard window stopped
+        at its iteration share twice with CPU left, bench/RESULTS.md, 2026-12-02, helper
+        C; a window's iteration costs what its nodes cost, so the CPU seconds are the
+        guard), 1D 600 + 40 per km (at double spacing the 1D
         first start on Bologna converged on a step artefact in 340 iterations and the
         re-solve on the refined mesh needed 487 more: 827 against 722 of 400 + 20 per
         km; 1D iterations are cheap, its CPU seconds are the guard). Seconds scale with what
-        costs, the nodes: 3D 60 s + 10 s per km, 1D 20 s + 2 s per km at the default
+        costs, the nodes: 3D 60 s + 15 s per km, 1D 20 s + 2 s per km at the default
         coarsest spacing (`h_max_m` 4 m, `h_max_1d_m` 10 m), times default / actual
         spacing (`uniform_m` if set) on a finer mesh. Why: the mesh has ~250-300 nodes
         per km at the default 3D spacing (bologna 4,309 for 16.1 km, stjohns 10,340 for 41.3 km);
@@ -76,12 +92,16 @@ class OcpSettings:
         at the CPU budget (bench/RESULTS.md, 2026-12-01 and 2026-12-02). The seconds
         are CPU seconds of this process (IPOPT's `max_cpu_time`, and the restarts'
         share): on a loaded, shared machine wall time says more about the neighbours
-        than about the course.
+        than about the course. 15 s per km (10 before): the 80 km Shanghai ride's
+        windows (`window_min_m`) took ~130 s CPU per 15 km window at load ~7 and
+        reached its fifth window of six after 650 of its 860 s (bench/RESULTS.md,
+        2026-12-02, helper C); a converging solve never uses its whole budget, so only a
+        failing one runs longer.
         """
         km = max(length_m, 0.0) / 1000.0
         if model == "3d":
             finer = max(1.0, _DEFAULT_H_MAX_M / (self.uniform_m or self.h_max_m))
-            iters, secs = 500 + 40 * km, 60.0 + 10.0 * km * finer
+            iters, secs = 500 + 80 * km, 60.0 + 15.0 * km * finer
         else:
             finer = max(1.0, _DEFAULT_H_MAX_1D_M / (self.uniform_m or self.h_max_1d_m))
             iters, secs = 600 + 40 * km, 20.0 + 2.0 * km * finer

@@ -188,9 +188,19 @@ _RESUME = {"warm_start_init_point": "yes", "mu_init": 1e-4, "warm_start_bound_pu
            "warm_start_slack_bound_push": 1e-6, "warm_start_slack_bound_frac": 1e-6}
 
 
+#: The adaptive barrier's globalization of the restart after a 1D run that did not
+#: converge (`full_course_solver(never_monotone=True)`): IPOPT's default ("obj-constr-filter")
+#: let the barrier fall to 1e-11 by iteration ~100 with the infeasibility still ~0.6 on the
+#: 80 km Shanghai ride, then crawled to the CPU cap (708 iterations); without the
+#: fall-back to the monotone mode it converged in 60. Not a default: over the convergence
+#: study's courses it was better on some and worse on others (bologna 81 -> 257
+#: iterations; bench/RESULTS.md, 2026-12-02, lead), so only as a restart.
+_NEVER_MONOTONE = {"ipopt.adaptive_mu_globalization": "never-monotone-mode"}
+
+
 def full_course_solver(tr: Transcription, *, max_iter: int, max_cpu_time_s: float, tol: float,
                        bound_push: float, acceptable_tol: float | None = None,
-                       resume: bool = False) -> NlpSolver:
+                       resume: bool = False, never_monotone: bool = False) -> NlpSolver:
     """The solver of one full-course attempt (`course_problem.solve_plan`).
 
     `bound_push` (= IPOPT's `bound_frac`): how far the initial point is moved inside its
@@ -199,8 +209,9 @@ def full_course_solver(tr: Transcription, *, max_iter: int, max_cpu_time_s: floa
     `acceptable_tol`: IPOPT's acceptable level (default: IPOPT's own 1e-6 ... with 15
     acceptable iterations). The 1D model's barrier is capped (`_MU_MAX_1D`). `resume`:
     the run continues a previous one from its primal-dual point (`_RESUME`; the caller
-    passes the multipliers to `solve`). The budget is at least one iteration and one CPU
-    second.
+    passes the multipliers to `solve`). `never_monotone`: the adaptive barrier without
+    its fall-back to the monotone mode (`_NEVER_MONOTONE`). The budget is at least one
+    iteration and one CPU second.
     """
     opts = {**_COMMON, "ipopt.max_iter": max(int(max_iter), 1),
             "ipopt.max_cpu_time": max(max_cpu_time_s, 1.0), "ipopt.tol": tol,
@@ -214,6 +225,8 @@ def full_course_solver(tr: Transcription, *, max_iter: int, max_cpu_time_s: floa
         opts |= {"ipopt.acceptable_tol": acceptable_tol, "ipopt.acceptable_iter": 5}
     if resume:
         opts |= {f"ipopt.{k}": v for k, v in _RESUME.items()}
+    if never_monotone:
+        opts |= _NEVER_MONOTONE
     return NlpSolver(f"ocp_{tr.model.name}_{tr.layout.n_intervals}", tr, opts)
 
 

@@ -25,7 +25,7 @@ def test_coarser_and_uniform_meshes() -> None:
     coarse = OcpSettings(h_max_m=2 * base.h_max_m, h_max_1d_m=2 * base.h_max_1d_m)
     assert coarse.budget("3d", 20_000.0) == base.budget("3d", 20_000.0)
     uniform = OcpSettings(uniform_m=1.0)
-    assert uniform.budget("3d", 1000.0)[1] == pytest.approx(60.0 + 10.0 * base.h_max_m)
+    assert uniform.budget("3d", 1000.0)[1] == pytest.approx(60.0 + 15.0 * base.h_max_m)
 
 
 def test_explicit_budget_wins() -> None:

@@ -1,0 +1,112 @@
+"""A long cold 3D solve goes through overlapping windows and a polish of their stitched
+point (`course_windows`, `course_restarts` "windows first"); a 1D run that did not
+converge restarts with the never-monotone barrier. The thresholds are settings (or
+module constants) passed small here, so that a 1.2 km course exercises them."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from support.courses import SHORT
+from support.real_data import data_path
+
+from itt_planner.course.builder import build_course
+from itt_planner.course.loader import load_course
+from itt_planner.model.rider import PRESETS
+from itt_planner.ocp import course_restarts
+from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.course_settings import OcpSettings
+from itt_planner.ocp.course_windows import plan_windows, stitch
+from itt_planner.ocp.solver import PlanStatus, SolveResult
+from itt_planner.ocp.transcription import Layout
+
+
+def test_windows_cover_the_course_with_overlaps() -> None:
+    nodes = np.cumsum(np.r_[0.0, np.full(300, 4.0), np.full(400, 1.0)])  # 1,600 m
+    wins = plan_windows(nodes, 500.0, 120.0)
+    assert len(wins) == 4
+    assert wins[0].first == 0 and wins[-1].core_end == wins[-1].last == len(nodes) - 1
+    for a, b in itertools.pairwise(wins):
+        assert b.first == a.core_end  # the cores tile the mesh
+        assert nodes[a.last] - nodes[a.core_end] >= 120.0 - 4.0  # the overlap
+    assert plan_windows(nodes, 5000.0, 120.0)[0].last == len(nodes) - 1  # one window
+
+
+def _window_of(layout: Layout, v: np.ndarray, g: np.ndarray, first: int, last: int
+               ) -> SolveResult:
+    """The slice of a full-course point a window on nodes first..last would hold."""
+    lay = Layout(layout.nx, layout.nu, 0, last - first, layout.n_path, layout.accel)
+
+    def part(vec: np.ndarray) -> np.ndarray:
+        x, u, _ = layout.split(vec)
+        return lay.join(x[:, first: last + 1], u[:, first: last])
+
+    gaps = g[: layout.n_gap].reshape(layout.n_intervals, layout.nx)[first:last]
+    path = g[layout.n_gap: layout.n_gap + layout.n_path * layout.n_nodes].reshape(
+        layout.n_nodes, layout.n_path)[first: last + 1]
+    accel = g[layout.accel_rows][first:last]
+    lam_g = np.concatenate([gaps.ravel(), path.ravel(), accel])
+    return SolveResult(part(v), part(v + 1.0), lam_g, 0.0, PlanStatus.CONVERGED, "ok", 1, 0.0)
+
+
+def test_stitching_the_slices_of_a_point_gives_the_point_back() -> None:
+    layout = Layout(nx=8, nu=2, ns=0, n_intervals=60, n_path=3)
+    rng = np.random.default_rng(0)
+    w, lam_g = rng.normal(size=layout.n_var), rng.normal(size=layout.n_g)
+    nodes = np.linspace(0.0, 600.0, layout.n_nodes)
+    wins = plan_windows(nodes, 250.0, 60.0)
+    runs = []
+    for k, win in enumerate(wins):
+        run = _window_of(layout, w, lam_g, win.first, win.last)
+        if k:  # a window's first node is its fixed start: the stitch must not take it
+            assert run.lam_x is not None
+            run.lam_x[: layout.nx] = np.nan
+        runs.append(run)
+    point = stitch(layout, wins, runs)
+    assert np.array_equal(point.w, w)
+    assert point.lam_x is not None
+    assert np.array_equal(point.lam_x, w + 1.0)
+    assert point.lam_g is not None
+    assert np.array_equal(point.lam_g, lam_g)
+
+
+def test_windows_first_reaches_the_cold_plan() -> None:
+    course, rider = build_course(SHORT), PRESETS["paper"]
+    cold = solve_plan(course, rider, model="3d")
+    assert cold.meta["success"], cold.meta["attempts"]
+    assert "1d plan for the windows" not in [a["strategy"] for a in cold.meta["attempts"]]
+    settings = OcpSettings(window_min_m=0.0, window_m=700.0, window_overlap_m=300.0)
+    plan = solve_plan(course, rider, settings=settings, model="3d")
+    assert plan.meta["success"], plan.meta["attempts"]
+    strategies = [a["strategy"] for a in plan.meta["attempts"]]
+    assert strategies[0] == "1d plan for the windows"
+    assert strategies[1].startswith("window 1/2") and strategies[-1] == "polish from the windows"
+    assert np.array_equal(plan.s_m, cold.s_m)
+    assert plan.finish_time_s == pytest.approx(cold.finish_time_s, rel=5e-4)
+    # A start mid-course or a given guess never takes the windows.
+    warm = solve_plan(course, rider, settings=settings, model="3d", guess=cold)
+    assert warm.meta["attempts"][0]["strategy"] == "guess"
+
+
+def test_a_capped_1d_run_restarts_with_the_never_monotone_barrier(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    course, rider = build_course(SHORT), PRESETS["paper"]
+    monkeypatch.setattr(course_restarts, "_FIRST_SHARE", 0.01)  # the first run is capped
+    plan = solve_plan(course, rider, model="1d")
+    first, second = plan.meta["attempts"][:2]
+    assert first["outcome"] == PlanStatus.CAPPED
+    assert second["strategy"] == "never-monotone barrier"
+    assert plan.meta["success"], plan.meta["attempts"]
+
+
+@pytest.mark.slow
+def test_the_80_km_stop_go_ride_converges_through_the_windows() -> None:
+    """The Shanghai ride (80 km, 245 corners): capped after 571 iterations without the
+    windows (bench/RESULTS.md, 2026-12-02); ~15-30 min of CPU on a shared machine."""
+    course = load_course(data_path("rides/elemnt_shanghai_2019_stopgo.fit"))
+    plan = solve_plan(course, PRESETS["typical"], model="3d")
+    strategies = [a["strategy"] for a in plan.meta["attempts"]]
+    assert strategies[0] == "1d plan for the windows"
+    assert plan.meta["success"], plan.meta["attempts"]
