@@ -65,6 +65,10 @@ def replay_cli(
                                         help="Stamp time between replans (s)."),
     horizon_m: float = typer.Option(1000.0, "--horizon-m", help="Receding-horizon length (m)."),
     model: str = typer.Option("3d", "--model", help="Full-course plan model: 3d or 1d."),
+    resolve_model: str = typer.Option(
+        "3d", "--course-resolve-model",
+        help="What a re-solve of the rest of the course solves: 3d, or 1d-line (the 1D on "
+             "the plan's line where no corner ahead needs the 3D, else the 3D)."),
     cache_dir: Path = typer.Option(Path(".itt_cache"), "--cache-dir",
                                    help="Where full-course plans are cached."),
     live_timing: bool = typer.Option(
@@ -75,6 +79,7 @@ def replay_cli(
 ) -> None:
     """Replay a ride log through the pacing engine; write advice to MCAP (and Rerun)."""
     from itt_planner.errors import IttError  # noqa: PLC0415
+    from itt_planner.live.resolve_model import RESOLVE_MODELS  # noqa: PLC0415
     from itt_planner.session.config import SessionConfig  # noqa: PLC0415
     from itt_planner.session.replay import ReplaySettings, parse_speed, replay_ride  # noqa: PLC0415
 
@@ -83,9 +88,13 @@ def replay_cli(
             settings = ReplaySettings(speed=parse_speed(speed))
         except ValueError as err:
             raise IttError(str(err)) from None
+        if resolve_model not in RESOLVE_MODELS:
+            raise IttError(f"--course-resolve-model {resolve_model!r}: choose one of "
+                           f"{', '.join(RESOLVE_MODELS)}")
         config = SessionConfig(course=course, rider=rider, model=model,
                                plan_cache=str(cache_dir), horizon_m=horizon_m,
-                               replan_period_s=replan_period, deterministic=not live_timing)
+                               replan_period_s=replan_period, deterministic=not live_timing,
+                               course_resolve_model=resolve_model)
         result = replay_ride(log, config, output=out, rrd=rrd, rerun_sinks=tuple(rerun),
                              settings=settings, progress=progress_enabled()).as_dict()
     emit(result, as_json, _human_replay)

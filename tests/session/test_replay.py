@@ -238,3 +238,14 @@ def test_cli_replay_json(setup: dict[str, Any], tmp_path: Path) -> None:
             "output", "rrd", "warnings", "errors"} <= set(data)
     assert data["advice_out"] >= 2 and data["errors"] and data["rrd"] is None
     assert Path(data["output"]).is_file()
+
+
+def test_cli_replay_refuses_an_unknown_resolve_model(tmp_path: Path) -> None:
+    """`--course-resolve-model` takes what `CourseReplanSettings.model` does: anything else
+    is one JSON error naming the option, before any input is read."""
+    result = CliRunner().invoke(app, [
+        "replay", str(tmp_path / "none.mcap"), "--course", "verona-like", "--rider", "typical",
+        "--course-resolve-model", "2d", "--json"])
+    assert result.exit_code == 1, result.output
+    error = json.loads(result.stdout)
+    assert "--course-resolve-model '2d'" in error["error"] and "1d-line" in error["error"]
