@@ -8,7 +8,11 @@ the course while each costs more per node: the 80 km Shanghai ride (245 corners)
 at its CPU budget after 571 iterations, the 98.8 km Sauerland ride ran for more than 7
 minutes without an end (bench/RESULTS.md, 2026-12-02). A window of ~15 km is a course
 of the size the 3D model converges on in 100-300 iterations (Bologna, verona-like,
-tokyo2020), so the cost grows with the course's length, not with its square.
+tokyo2020), so the cost grows with the course's length, not with its square. Measured
+(bench/RESULTS.md, 2026-12-02, helper C), converged and verified: Shanghai 2,080-2,566
+iterations, 679-764 s CPU (its city-centre window alone up to 1,161 iterations: windows
+are cut by length, not by corners); Sauerland 1,210-1,245, 343-399 s; Ardennes 942, 250 s
+(cold: 487 iterations, 390 s wall).
 
 The windows split the course (from the full mesh's nodes, so that every window's nodes
 are nodes of the full mesh) into `n` equal cores; window k spans its core and
