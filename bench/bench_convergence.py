@@ -24,7 +24,7 @@ CP 290 W, otherwise the paper calibration).
 Each case runs in a fresh child process (one case's memory or a crash cannot colour the
 next); rows are printed as they come and, with `--jsonl FILE`, appended to FILE.
 
-Run: .venv/bin/python bench/bench_convergence.py [--models 1d,1d-line,3d] [--meshes 1,0.5,2]
+Run: .venv/bin/python -m bench.bench_convergence [--models 1d,1d-line,3d] [--meshes 1,0.5,2]
      [--courses NAME,...] [--jsonl FILE]
 Wall times on a shared, loaded machine: the load average is printed with every row.
 """
@@ -41,10 +41,13 @@ from pathlib import Path
 from queue import Empty
 from typing import Any
 
+from support.courses import loop_4k_lap
+
 from itt_planner.course.builder import build_course
 from itt_planner.course.geometry import Course
 from itt_planner.course.loader import load_course
 from itt_planner.model.rider import Rider
+from itt_planner.units import MPS_TO_KMH
 
 RIDER = Rider(name="issue18", mass_kg=86.0, drag_area_m2=0.273, critical_power_w=290.0)
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
@@ -53,18 +56,8 @@ REAL = {"tokyo2020": DATA / "courses" / "tokyo2020_olympic_itt_lap.csv",
         "stjohns": DATA / "rides" / "edge810_vector_stjohns_2013.fit"}
 
 
-def _lap() -> list[dict[str, Any]]:
-    out = []
-    for side in (900.0, 1037.0, 900.0, 1037.0):
-        out += [{"type": "straight", "length_m": side},
-                {"type": "clothoid", "length_m": 10, "radius_m": 20, "direction": "left"},
-                {"type": "arc", "angle_deg": 90 - 28.65, "radius_m": 20, "direction": "left"},
-                {"type": "clothoid", "length_m": 10}]
-    return out
-
-
 BUILT: dict[str, dict[str, Any]] = {
-    "loop-4k-2laps": {"segments": _lap() + _lap()},
+    "loop-4k-2laps": {"segments": loop_4k_lap() + loop_4k_lap()},
     "climb-3.9k": {"segments": [
         {"type": "straight", "length_m": 300, "grade_pct": 2},
         {"type": "straight", "length_m": 1200, "grade_pct": 6},
@@ -138,7 +131,7 @@ def _case(name: str, model: str, scale: float, queue: mp.Queue[dict[str, Any]]) 
                 "verified": ver.get("verified"), "worst": ver.get("worst"),
                 "worst_ratio": ver.get("worst_ratio"),
                 "max_speed_error_mps": ver.get("max_speed_error_mps"),
-                "v_max_kmh": round(3.6 * float(np.max(plan.v_mps)), 1),
+                "v_max_kmh": round(MPS_TO_KMH * float(np.max(plan.v_mps)), 1),
                 "line_ratio": plan.meta.get("line", {}).get("length_ratio")}
     except Exception as err:  # noqa: BLE001 - a bench row records any failure
         row |= {"status": "error", "error": f"{type(err).__name__}: {err}"[:200]}

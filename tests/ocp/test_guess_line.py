@@ -3,27 +3,14 @@ a 2-lap loop both laps ride the same line, through every corner to the inside ed
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
+from support.courses import loop_4k_lap
 
 from itt_planner.course.builder import build_course
 from itt_planner.ocp.guess import _LINE_MARGIN_M, _line
 
-
-def _lap() -> list[dict[str, Any]]:
-    """The 4 km loop of issue 18 (bench_convergence's `loop-4k-2laps`): four corners of
-    20 m entered and left through clothoids."""
-    out: list[dict[str, Any]] = []
-    for side in (900.0, 1037.0, 900.0, 1037.0):
-        out += [{"type": "straight", "length_m": side},
-                {"type": "clothoid", "length_m": 10, "radius_m": 20, "direction": "left"},
-                {"type": "arc", "angle_deg": 90 - 28.65, "radius_m": 20, "direction": "left"},
-                {"type": "clothoid", "length_m": 10}]
-    return out
-
-
-LOOP = build_course({"name": "loop-4k-2laps", "segments": _lap() + _lap()})
+#: Issue 18's 4 km loop, two laps: four corners of 20 m a lap.
+LOOP = build_course({"name": "loop-4k-2laps", "segments": loop_4k_lap() + loop_4k_lap()})
 
 
 def test_both_laps_ride_the_same_line_to_the_inside_edge() -> None:

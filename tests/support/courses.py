@@ -1,6 +1,9 @@
-"""Small synthetic courses for the OCP tests: a hairpin and a straight."""
+"""Small synthetic courses for the OCP tests (a hairpin, a straight) and course-builder
+specs shared with the benchmarks."""
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 
@@ -38,3 +41,16 @@ def climb_bend_descent(name: str, climb_m: float) -> dict[str, object]:
 
 #: The sweep tests' and bench's short course, 1.2 km.
 SHORT = climb_bend_descent("short-1200m", 900.0)
+
+
+def loop_4k_lap() -> list[dict[str, Any]]:
+    """Course-builder segments of one lap of issue 18's 4 km loop (bench_convergence's
+    `loop-4k-2laps` is two of them): four left corners of 20 m entered and left through
+    clothoids."""
+    out: list[dict[str, Any]] = []
+    for side in (900.0, 1037.0, 900.0, 1037.0):
+        out += [{"type": "straight", "length_m": side},
+                {"type": "clothoid", "length_m": 10, "radius_m": 20, "direction": "left"},
+                {"type": "arc", "angle_deg": 90 - 28.65, "radius_m": 20, "direction": "left"},
+                {"type": "clothoid", "length_m": 10}]
+    return out
