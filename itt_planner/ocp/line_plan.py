@@ -35,6 +35,7 @@ import numpy as np
 from itt_planner.course.geometry import Course
 from itt_planner.course.racing_line import RacingLine, line_course
 from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.model.dynamics import steady_lean_rad
 from itt_planner.model.params import lateral_limit_mps2
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.course_nlp import PrimalDual
@@ -88,7 +89,7 @@ def line_corners(plan: Plan, line: RacingLine, rider: Rider, conditions: Conditi
     ay = plan.v_mps ** 2 * kappa
     lon = plan.ax_mps2 / (conditions.mu_x * GRAVITY_MPS2)
     use = np.hypot(lon, ay / lateral_limit_mps2(rider, conditions))
-    lean = np.arctan(np.abs(ay) / GRAVITY_MPS2)
+    lean = np.abs(steady_lean_rad(ay))
     pedal = np.where(lean < rider.pedal_lean_max_rad,
                      1 - (lean / rider.pedal_lean_max_rad) ** 2, 0.0)
     out = dataclasses.replace(plan, ay_mps2=ay, friction_use=use)
