@@ -25,6 +25,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from itt_planner.course.geometry import Course
+from itt_planner.course.racing_line import offset_heading_rad, offset_stretch
 from itt_planner.errors import SolveError
 from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.model.dynamics import CONTROLS_1D, STATES_1D, SpatialModel, path_slope_rad
@@ -236,7 +237,7 @@ def _line(course: Course, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
                     "nodes; its last iterate is used, clipped into the road",
                     qp.stats()["return_status"], size)
     n = np.clip(np.asarray(sol["x"]).ravel(), lo, hi)
-    alpha = np.arctan2(np.gradient(n, nodes), 1 - n * kappa)
+    alpha = offset_heading_rad(n, nodes, kappa)
     curvature = (kappa + np.gradient(alpha, nodes)) * np.cos(alpha) / (1 - n * kappa)
     return n, alpha, curvature
 
@@ -269,9 +270,9 @@ def arc_guess(model: SpatialModel, course: Course, nodes: np.ndarray, rider: Rid
     lo, hi = 0.5 * cp, min(rider.max_power_w, cp * 2.0)
     n, alpha, kp = _line(course, nodes)
     kappa = course.at("kappa_per_m", nodes)
-    # ds along the line per ds along the centre line (E8 without the speed), and the
-    # line's own slope (E3 [fix]): the model rides both.
-    stretch = (1 - n * kappa) / np.cos(alpha)
+    # ds along the line per ds along the centre line, and the line's own slope (E3
+    # [fix]): the model rides both.
+    stretch = offset_stretch(n, alpha, kappa)
     beta = path_slope_rad(course.at("beta_rad", nodes), n, alpha, kappa)
     grade = np.tan(beta)
     ride = _arc_ride(nodes, rider, conditions, v0, _pacing_w(lo, grade, rider, conditions),
