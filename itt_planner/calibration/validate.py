@@ -22,6 +22,7 @@ from itt_planner.calibration.forward import ForwardRun, forward_1d, forward_3d
 from itt_planner.calibration.physics_check import physics_check
 from itt_planner.calibration.plan_check import plan_check
 from itt_planner.calibration.ride_data import CalibrationError, RideSeries
+from itt_planner.calibration.ride_elevation import is_ride_course, ride_elevation
 from itt_planner.calibration.ride_on_course import RideOnCourse, ride_on_course
 from itt_planner.course.geometry import Course
 from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
@@ -54,7 +55,7 @@ def ride_conditions(ride: RideSeries, wind_enu_mps: np.ndarray | None = None) ->
 
 def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *,
                   models: tuple[str, ...] = ("1d", "3d"), plan_models: tuple[str, ...] = (),
-                  temperature_c: float | None = None,
+                  temperature_c: float | None = None, elevation: str = "auto",
                   cache_dir: Path = Path(".itt_cache")) -> Validation:
     """Physics check (the 1D model with the ride's power alone in still air and in the
     day's wind, then with the ride's braking and stops too; the 3D model in the day's
@@ -66,16 +67,24 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
     numbers for the whole ride, a condition of the day like the air density, not a
     property of the rider. Without enough steady stretches only still air is run.
 
+    `elevation`: the profile the replays climb. "course": the course's; "ride": the
+    ride's own altitude laid on the course place by place, averaged over the passes of
+    each place and smoothed (`ride_elevation`); "auto": "ride" when the course was
+    fitted from this ride's file with its device altitude (the same readings, better
+    placed), else "course". The plan check always uses `course` (the plan's road).
+
     Raises:
         CalibrationError: the ride is unusable or does not lie on `course`, or the
             course's elevation disagrees with itself where it passes a place twice
-            (`elevation_check`: a drifting altimeter's profile).
+            (`elevation_check`: a drifting altimeter's profile), or `elevation` is
+            "ride" and the ride does not cover the course, or `elevation` is unknown.
         SolveError: a plan could not be set up (a plan that does not converge is
             checked anyway and says so: `converged: false`).
     """
     series = ride if isinstance(ride, RideSeries) else load_rides([ride], temperature_c)[0]
     check_course_elevation(course, series.source)
     on_course = ride_on_course(series, course)
+    replayed, elevation_note = _replay_course(series, course, elevation)
     conditions = ride_conditions(series)
     wind_note: dict[str, Any] = {}
     try:
@@ -92,10 +101,11 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
     if "1d" in models:
         # The ride's power alone (still air, then the day's wind), then with the ride's
         # braking and stops: what each of the ride's inputs explains.
-        runs.append(forward_1d(course, rider, on_course, conditions, ride_brakes=False))
+        runs.append(forward_1d(replayed, rider, on_course, conditions, ride_brakes=False))
         if "speed_kmh" in wind_note:
-            runs.append(forward_1d(course, rider, on_course, day, day_label, ride_brakes=False))
-        runs.append(forward_1d(course, rider, on_course, day, day_label))
+            runs.append(forward_1d(replayed, rider, on_course, day, day_label,
+                                   ride_brakes=False))
+        runs.append(forward_1d(replayed, rider, on_course, day, day_label))
     figures: dict[str, Any] = {
         "ride": series.source, "course": course.name, "rider": rider.name,
         "rider_values": _rider_values(rider),
@@ -108,14 +118,15 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
                                             / (on_course.s_m[-1] - on_course.s_m[0])), 4),
         "air_density_kgpm3": round(conditions.air_density_kgpm3, 4),
         "day_wind": wind_note,
+        "elevation": elevation_note,
     }
     if "3d" in models:
         try:
-            runs.append(forward_3d(course, rider, on_course, day, day_label))
+            runs.append(forward_3d(replayed, rider, on_course, day, day_label))
         except CalibrationError as err:
             figures["physics_3d"] = str(err)
     grip = day.mu_y * GRAVITY_MPS2
-    figures["physics"] = [physics_check(run, on_course, course, grip) for run in runs]
+    figures["physics"] = [physics_check(run, on_course, replayed, grip) for run in runs]
     plans = []
     if plan_models:
         from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
@@ -131,6 +142,22 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
             plans.append(plan)
             figures["plans"].append(plan_check(plan, on_course, course))
     return Validation(figures, series, on_course, course, runs, plans)
+
+
+def _replay_course(series: RideSeries, course: Course, elevation: str
+                   ) -> tuple[Course, dict[str, Any]]:
+    """The course the physics replays run on, and which elevation it has (figures).
+
+    Raises:
+        CalibrationError: an unknown `elevation`, or "ride" on a ride that does not
+            cover the course.
+    """
+    if elevation not in ("auto", "course", "ride"):
+        raise CalibrationError(f"elevation {elevation!r}: expected auto, course or ride")
+    if elevation == "course" or (elevation == "auto"
+                                 and not is_ride_course(course, series.source)):
+        return course, {"source": "course"}
+    return ride_elevation(series, course)
 
 
 def _rider_values(rider: Rider) -> dict[str, Any]:
