@@ -54,6 +54,8 @@ PASS_LOWPASS_M = 1000.0
 PASS_REJECT_M = 3.0
 #: Neighbours looked at per course point (1 m grid: ~17 per pass within 8 m).
 _NEIGHBOURS = 96
+#: Course points per neighbour query (bounds the memory of `pass_readings`).
+_CHUNK = 8192
 #: Share of the course the ride must cover for its altitude to replace the course's.
 MIN_COVERED = 0.9
 
@@ -124,17 +126,21 @@ def pass_readings(course: Course, z: np.ndarray) -> PassReadings:
     low = gaussian_filter1d(z, PASS_LOWPASS_M / 2.0 / course.ds_m, mode="nearest")
     short = z - low
     xy = np.c_[course.x_m, course.y_m]
-    dist, idx = cKDTree(xy).query(xy, k=min(_NEIGHBOURS, len(z)),
-                                  distance_upper_bound=PASS_RADIUS_M)
-    found = np.isfinite(dist)
-    idx = np.where(found, idx, 0)
-    apart = np.abs(course.s_m[idx] - course.s_m[:, None]) >= PASS_APART_M
-    same_road = np.abs(short[idx] - short[:, None]) <= PASS_REJECT_M
-    other = found & apart & same_road
-    n_other = other.sum(axis=1)
-    other_short = np.where(n_other > 0, (short[idx] * other).sum(axis=1)
-                           / np.maximum(n_other, 1), 0.0)
-    passes = n_other / np.maximum((found & ~apart).sum(axis=1), 1)
+    tree = cKDTree(xy)
+    other_short = np.zeros(len(z))
+    passes = np.zeros(len(z))
+    # In chunks: the neighbour table of a 100 km course at once is ~100 MB per array.
+    for lo in range(0, len(z), _CHUNK):
+        at = np.arange(lo, min(lo + _CHUNK, len(z)))
+        dist, idx = tree.query(xy[at], k=min(_NEIGHBOURS, len(z)),
+                               distance_upper_bound=PASS_RADIUS_M)
+        found = np.isfinite(dist)
+        idx = np.where(found, idx, 0)
+        apart = np.abs(course.s_m[idx] - course.s_m[at, None]) >= PASS_APART_M
+        other = found & apart & (np.abs(short[idx] - short[at, None]) <= PASS_REJECT_M)
+        n_other = other.sum(axis=1)
+        other_short[at] = (short[idx] * other).sum(axis=1) / np.maximum(n_other, 1)
+        passes[at] = n_other / np.maximum((found & ~apart).sum(axis=1), 1)
     return PassReadings(low, short, other_short, passes)
 
 
