@@ -1,8 +1,9 @@
 """Validate a rider and the planner against a real ride, and out of sample (hold-out).
 
 `validate_ride` lays the ride on its course, replays its power through the model
-(`forward`, physics check) and, on request, compares the optimal plan for the rider
-with it (`plan_check`). The air density is the ride's (altitude and temperature).
+(`forward`, physics check; on the ride's own altitude when the course is the ride's,
+`ride_elevation`) and, on request, compares the optimal plan for the rider with it
+(`plan_check`). The air density is the ride's (altitude and temperature).
 `holdout` calibrates on all rides but one and validates on that one, for each ride.
 """
 
@@ -71,7 +72,8 @@ def validate_ride(ride: str | Path | RideSeries, course: Course, rider: Rider, *
     ride's own altitude laid on the course place by place, averaged over the passes of
     each place and smoothed (`ride_elevation`); "auto": "ride" when the course was
     fitted from this ride's file with its device altitude (the same readings, better
-    placed), else "course". The plan check always uses `course` (the plan's road).
+    placed), else "course" (also when the ride's profile is refused: `elevation` in the
+    figures says why). The plan check always uses `course` (the plan's road).
 
     Raises:
         CalibrationError: the ride is unusable or does not lie on `course`, or the
@@ -157,7 +159,14 @@ def _replay_course(series: RideSeries, course: Course, elevation: str
     if elevation == "course" or (elevation == "auto"
                                  and not is_ride_course(course, series.source)):
         return course, {"source": "course"}
-    return ride_elevation(series, course)
+    try:
+        return ride_elevation(series, course)
+    except CalibrationError as err:
+        if elevation == "ride":
+            raise
+        # auto: the course's profile, and the JSON says why not the ride's.
+        log.warning("validate: the course's elevation kept: %s", err)
+        return course, {"source": "course", "ride_refused": str(err)}
 
 
 def _rider_values(rider: Rider) -> dict[str, Any]:

@@ -20,7 +20,9 @@ from itt_planner.calibration.ride_elevation import (
     pass_readings,
     ride_elevation,
 )
+from itt_planner.calibration.validate import validate_ride
 from itt_planner.course.geometry import Course, GeoOrigin
+from itt_planner.model.rider import PRESETS
 
 ST_JOHNS = "rides/edge810_vector_stjohns_2013.fit"
 LAP_M = 2 * np.pi * 500.0
@@ -102,3 +104,18 @@ def test_st_johns_ride_elevation(real_course: Callable[[str], Course]) -> None:
     assert np.all(np.abs(np.tan(replay.beta_rad)) < 0.2)
     with pytest.raises(CalibrationError, match="covers"):
         ride_elevation(head(ride, 0.25), course)
+
+
+def test_auto_keeps_the_course_profile_when_the_ride_is_refused(
+        real_course: Callable[[str], Course]) -> None:
+    """`validate` on its own course's file with a quarter of the ride: the ride's altitude
+    covers too little of the course, so `auto` replays on the course's profile and says
+    why (a fallback is reported, not silent); `ride` asked for is refused."""
+    path = data_path(ST_JOHNS)
+    course = real_course(ST_JOHNS)
+    part = head(load_rides([path], None)[0], 0.25)
+    figures = validate_ride(part, course, PRESETS["paper"], models=("1d",)).figures
+    assert figures["elevation"]["source"] == "course"
+    assert "covers" in figures["elevation"]["ride_refused"]
+    with pytest.raises(CalibrationError, match="covers"):
+        validate_ride(part, course, PRESETS["paper"], models=("1d",), elevation="ride")
