@@ -86,7 +86,7 @@ def naive_baseline(course: Course, rider: Rider) -> dict[str, Any]:
         k4, _, j4 = model.ode(x[:, k] + h * k3, u[:, k], rk, par)
         opti.subject_to(x[:, k + 1] == x[:, k] + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4))
         cost += h / 6 * (j1 + 2 * j2 + 2 * j3 + j4)
-        opti.subject_to(model.path(x[:, k + 1], par) <= 0)
+        opti.subject_to(model.path(x[:, k + 1], rk, par) <= 0)  # interval k's road
     xg, _ = initial_guess(model, course, nodes, rider, Conditions(),
                           start_speed(rider, Conditions(), OcpSettings()))
     v_max = speed_limit_mps(course, nodes, rider, Conditions(), float(xg[model.index("v"), 0]))

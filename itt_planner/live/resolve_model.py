@@ -1,23 +1,25 @@
 """Which model a re-solve of the rest of the course solves, in the worker
-(`course_replan`): the 3D OCP of the road, or the 1D OCP on the line of the plan in force
-where that line's corners allow it (`CourseReplanSettings.model`).
+(`course_replan`): the 3D OCP of the road, or the 1D OCP that knows the corners on the
+line of the plan in force (`CourseReplanSettings.model`).
 
 Why the 1D on the line: the 3D re-solves were most of the wall of a deterministic replay
 (each is waited for: bench/RESULTS.md, 2026-12-02, issue 14 item 6), and on the line of
-the 3D plan in force (its own n(s), `racing_line.offset_course`) the 1D model rides the
-same path with the same longitudinal physics at a fraction of the cost: on the 13
-re-solves of the Zwift Bologna ride, warm, 7-22 iterations and 0.15-0.9 s CPU where the
-3D took 8-63 and 0.4-8.5 s from the same starts (at the 8.2 km stop 270-292 and 4.4-5.6 s
-against 64-73 and 9.0-9.6 s). Why only where the corners allow: the 1D model ignores
-them (model.md section 6); on the technical first 8 km of that ride its plans took the
-hairpins at up to 3 g and predicted the rest 9-17 s faster than the 3D. So a
-1D plan is used only if it fits C15 and C16 at the steady lean its speed asks on the
-line (`line_plan.line_corners`); where the plan in force has a corner ahead that it
-leans through beyond the pedalling limit, the 1D is not even tried (`corner_ahead`).
-Otherwise the re-solve is the 3D one. Each plan says which it is
+the 3D plan in force (its own n(s), `racing_line.offset_course`) a 1D model rides the
+same path with the same longitudinal physics at a fraction of the cost. The plain 1D
+ignores the corners (model.md section 6): on the Zwift Bologna ride its plans took the
+hairpins at up to 3.8 g and were refused 12 times in 13. So the re-solve on the line
+is the model that knows the line's corners (`ocp.line_plan.solve_rest_on_line`,
+`model.dynamics.build_1d_line`: C15 and C16 at the lateral acceleration v^2 kappa of
+the line, at the steady lean). A plan is still used only if it fits C15 and C16 at the
+steady lean its speed asks on the line, node by node (`line_plan.line_corners`, the
+guard), and converged; otherwise the re-solve is the 3D one. Each plan says which it is
 (`meta["resolve"]`: the model, the line, why a 1D plan was refused), and the engine
-counts them (`plan_in_force`). On that ride the corners let the 1D solve 1 of the 13
-(the last, 1 km from the finish): the default stays `RESOLVE_3D`.
+counts them (`plan_in_force`). On the 14 re-solves of a Zwift Bologna replay, solved
+offline from the same starts (bench/RESULTS.md, 2026-12-02, helper H2): all 14
+rideable and used, 16.0 s CPU against the 3D's 53.6 s (-70 %); the rest predicted
+0.0-1.8 % (median 0.46 %) slower than the 3D's, as the steady lean of C15 stops the
+pedalling where the 3D's lean, a state, lags the turn. The default stays `RESOLVE_3D`
+(why: that section).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import numpy as np
 
 from itt_planner.course.geometry import Course
 from itt_planner.course.racing_line import RacingLine, offset_course
-from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.course_nlp import PrimalDual
 from itt_planner.ocp.course_problem import solve_plan_point
@@ -40,29 +42,16 @@ from itt_planner.ocp.plan import Plan
 log = logging.getLogger(__name__)
 
 #: What a re-solve solves (`CourseReplanSettings.model`): the 3D OCP always, or the 1D
-#: on the line of the plan in force where its corners allow (module docstring).
+#: that knows the corners on the line of the plan in force where its plan is rideable
+#: (module docstring).
 RESOLVE_3D = "3d"
 RESOLVE_1D_LINE = "1d-line"
 RESOLVE_MODELS = (RESOLVE_3D, RESOLVE_1D_LINE)
+
+
 def on_line(plan: Plan) -> bool:
     """Whether `plan` is a 1D re-solve on a plan's line (`solve_rest_on_line`)."""
     return bool(plan.meta.get("line", {}).get("kind") == "plan")
-
-
-def corner_ahead(plan: Plan, s_m: float, rider: Rider) -> str:
-    """Why the 1D on `plan`'s line is not worth trying from `s_m` ("" if it is): a corner
-    ahead where `plan` leans beyond the pedalling limit C15 (its lateral acceleration
-    above g tan(phi_pedal)). The 1D model rides no corner slower than the plan and does
-    not know that limit: on the Zwift Bologna ride every 1D re-solve with such a corner
-    ahead failed `line_corners` (C16 at up to 3 g on the first 8 km, C15 at 14.98 km)."""
-    ahead = plan.s_m >= s_m
-    ay = np.abs(plan.ay_mps2[ahead])
-    limit = GRAVITY_MPS2 * np.tan(rider.pedal_lean_max_rad)
-    if len(ay) == 0 or np.max(ay) < limit:
-        return ""
-    i = int(np.argmax(ay))
-    return (f"not tried: the plan in force leans beyond the pedalling limit at "
-            f"s = {plan.s_m[ahead][i]:.0f} m ({ay[i]:.1f} m/s^2)")
 
 
 class LineCache:
@@ -91,18 +80,16 @@ def solve_rest(model: str, course: Course, rider: Rider, conditions: Conditions,
     leaves to the solver (`course_replan.free_states`)."""
     refused = ""
     if model == RESOLVE_1D_LINE and line_n is not None:
-        refused = corner_ahead(guess, start.s_m, rider)
-        if not refused:
-            line = lines.get(course, line_n)
-            plan, point = solve_rest_on_line(line, rider, conditions, settings, guess=guess,
-                                             start=start, warm=warm if on_line(guess) else None)
-            plan, refused = line_corners(plan, line, rider, conditions)
-            if plan.converged and not refused:
-                plan.meta["resolve"] = {"model": RESOLVE_1D_LINE, "line": line.course.name}
-                return plan, point
-            refused = refused or f"the 1D plan on the line is {plan.status}"
-            log.info("course re-solve from s=%.0f m: the 1D plan on the line refused (%s); "
-                     "solving the 3D", start.s_m, refused)
+        line = lines.get(course, line_n)
+        plan, point = solve_rest_on_line(line, rider, conditions, settings, guess=guess,
+                                         start=start, warm=warm if on_line(guess) else None)
+        plan, refused = line_corners(plan, line, rider, conditions)
+        if plan.converged and not refused:
+            plan.meta["resolve"] = {"model": RESOLVE_1D_LINE, "line": line.course.name}
+            return plan, point
+        refused = refused or f"the 1D plan on the line is {plan.status}"
+        log.info("course re-solve from s=%.0f m: the 1D plan on the line refused (%s); "
+                 "solving the 3D", start.s_m, refused)
     plan, point = solve_plan_point(course, rider, conditions, settings, model="3d",
                                    guess=guess, start=start, free_start=free_3d,
                                    warm=None if on_line(guess) else warm)

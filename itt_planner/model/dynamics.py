@@ -4,7 +4,9 @@ Two models share one parameter vector and one interface:
 
 - the 3D model, states `x = [n, alpha, phi, phi_dot, v, W_n, delta_n, E_n]`, controls
   `u = [u_delta, u_W]` (E1-E9, C15, C16);
-- the 1D model (model.md section 6), states `x = [v, W_n, E_n]`, control `u = [u_W]`.
+- the 1D model (model.md section 6), states `x = [v, W_n, E_n]`, control `u = [u_W]`;
+- the 1D model on a fixed line that knows the line's corners (`build_1d_line`): the
+  same states, with C15 and C16 at the lateral acceleration `v^2 kappa` of the line;
 - the steady-lean 3D model of the receding horizon (`build_3d_steady_lean`): roll
   E4-E5 at equilibrium, states `x = [n, alpha, v, W_n, delta_n, E_n]` (why: `ocp.horizon`).
 
@@ -12,7 +14,8 @@ Everything rider- or weather-specific (mass, drag, grip, wind, ...) is a symboli
 parameter (`params.ModelParams.vector()`), not a constant, so the compiled integrator of
 the OCPs is reused for every rider and condition. The road enters through four numbers
 per interval (`params.ROAD`): the mean curvature and slope, the heading for the wind
-projection (E3), and the interval length. `rk4_step` integrates one interval. The 3D
+projection (E3), and the interval length; the path constraints take it too (the 1D
+model on a line reads its curvature there). `rk4_step` integrates one interval. The 3D
 models ride E3 on the slope of their own path, not the centre line's (`path_slope_rad`,
 a [fix] of model.md's E3: the road is level across its width, so a line inside a bend
 is steeper than the centre line, one outside it flatter).
@@ -39,6 +42,9 @@ STATES_3D = ("n", "alpha", "phi", "phi_dot", "v", "w_n", "delta_n", "e_n")
 CONTROLS_3D = ("u_delta", "u_w")
 STATES_1D = ("v", "w_n", "e_n")
 CONTROLS_1D = ("u_w",)
+#: The full-course models by name (`build_model`); "1dline" is the 1D on a fixed line
+#: (`build_1d_line`), solved on a line's course (`ocp.line_plan`).
+MODELS = ("3d", "1d", "1dline")
 
 #: Smoothing width of max(W_n, 0) in the dynamics (normalised power; 1e-3 is ~1 W).
 _EPS_WN = 1e-3
@@ -46,7 +52,6 @@ _EPS_WN = 1e-3
 _EPS_AIR = 1e-2
 #: Softplus width of the E9 switch at critical power (W); part of the model (verify.py).
 E9_SHARPNESS_W = 5.0
-_SHARPNESS_W = E9_SHARPNESS_W
 #: Speed floor inside divisions (m/s), below the OCP's v_min so never active at a solution.
 _V_GUARD_MPS = 0.2
 #: Width (normalised) of the smooth pedalling gate of C15.
@@ -61,11 +66,15 @@ class SpatialModel:
     """One model as CasADi Functions of `(x, u, road, par)` (all SX inside).
 
     Attributes:
-        name: "3d" or "1d".
+        name: "3d", "3dsteady", "1d" or "1dline".
         states, controls: names, in vector order.
         ode: `(x, u, road, par) -> (dx/ds, dt/ds, dJ/ds)`.
-        path: `(x, par) -> g` path constraints that must be <= 0 (C15, C16 - 1).
-        outputs: `(x, par) -> [power_w, ax, ay, friction_use]` for reporting.
+        path: `(x, road, par) -> g` path constraints that must be <= 0 (C16 - 1, C15);
+            `road` is that of the interval the node starts (the last node: the last
+            interval's). Only the 1D model on a line reads it (its curvature).
+        outputs: `(x, par) -> [power_w, ax, ay, friction_use]` for reporting, or
+            `(x, road, par) -> ...` where the outputs depend on the road (`build_1d_line`:
+            a_y = v^2 kappa; `outputs.n_in()` says which).
     """
 
     name: str
@@ -98,7 +107,7 @@ def _par(p: ca.SX) -> dict[str, ca.SX]:
 
 def _longitudinal(v: ca.SX, w_n: ca.SX, e_n: ca.SX, psi: ca.SX, beta: ca.SX,
                   q: dict[str, ca.SX], wprime_model: WPrimeModel, eps_wn: float = _EPS_WN,
-                  sharpness_w: float = _SHARPNESS_W) -> tuple[ca.SX, ca.SX]:
+                  sharpness_w: float = E9_SHARPNESS_W) -> tuple[ca.SX, ca.SX]:
     """dv/dt (E3) and dE_n/dt (E9), shared by all models (smoothing widths: module doc).
 
     `beta` is the slope of the rider's own path (`path_slope_rad`; the road's on the
@@ -186,6 +195,13 @@ def _friction(v: ca.SX, w_n: ca.SX, ay: ca.SX, q: dict[str, ca.SX]) -> ca.SX:
     return _ax_squared(v, w_n, q) + (ay / (q["mu_y"] * GRAVITY_MPS2)) ** 2
 
 
+def _pedal_gate(w_n: ca.SX, phi: ca.SX, q: dict[str, ca.SX]) -> ca.SX:
+    """C15: `W_n <= max(0, 1 - (phi/phi_pedal)^2)` as `g <= 0`, smoothed from the
+    feasible side (`_PEDAL_MARGIN`, `_EPS_PEDAL`)."""
+    r = phi / (_PEDAL_MARGIN * q["pedal_lean"])
+    return w_n - _smooth_pos(1 - r * r, _EPS_PEDAL)
+
+
 def build_3d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
     """The 3D model, E1-E9 with the [fix]es of model.md, path constraints C15 and C16."""
     x = ca.SX.sym("x", len(STATES_3D))
@@ -220,10 +236,9 @@ def build_3d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
 
     ay = v * yaw_rate
     friction = _friction(v, w_n, ay, q)
-    # C15: W_n <= max(0, 1 - (phi/phi_pedal)^2), smoothed from the feasible side.
-    r = phi / (_PEDAL_MARGIN * q["pedal_lean"])
-    pedal = w_n - _smooth_pos(1 - r * r, _EPS_PEDAL)
-    path = ca.Function("path3d", [x, p], [ca.vertcat(friction - 1, pedal)], ["x", "p"], ["g"])
+    path = ca.Function("path3d", [x, road, p],
+                       [ca.vertcat(friction - 1, _pedal_gate(w_n, phi, q))],
+                       ["x", "road", "p"], ["g"])
     outputs = ca.Function("out3d", [x, p], [_report(v, w_n, ay, friction, q)], ["x", "p"], ["y"])
     return SpatialModel("3d", STATES_3D, CONTROLS_3D, ode, path, outputs)
 
@@ -240,7 +255,7 @@ def steady_lean_rad(ay: ca.SX | np.ndarray) -> ca.SX | np.ndarray:
 
 
 def build_3d_steady_lean(wprime_model: WPrimeModel = WPrimeModel.SKIBA, *,
-                         eps_wn: float = _EPS_WN, sharpness_w: float = _SHARPNESS_W
+                         eps_wn: float = _EPS_WN, sharpness_w: float = E9_SHARPNESS_W
                          ) -> SpatialModel:
     """The 3D model with quasi-steady roll, for the receding horizon (not the full plan).
 
@@ -279,10 +294,9 @@ def build_3d_steady_lean(wprime_model: WPrimeModel = WPrimeModel.SKIBA, *,
 
     ay = v * yaw_rate
     friction = _friction(v, w_n, ay, q)
-    r = cast(ca.SX, steady_lean_rad(ay)) / (_PEDAL_MARGIN * q["pedal_lean"])  # C15, steady lean
-    pedal = w_n - _smooth_pos(1 - r * r, _EPS_PEDAL)
-    path = ca.Function("path3dsteady", [x, p], [ca.vertcat(friction - 1, pedal)],
-                       ["x", "p"], ["g"])
+    pedal = _pedal_gate(w_n, cast(ca.SX, steady_lean_rad(ay)), q)  # C15 at the steady lean
+    path = ca.Function("path3dsteady", [x, road, p], [ca.vertcat(friction - 1, pedal)],
+                       ["x", "road", "p"], ["g"])
     outputs = ca.Function("out3dsteady", [x, p], [_report(v, w_n, ay, friction, q)],
                           ["x", "p"], ["y"])
     return SpatialModel("3dsteady", STATES_3D_STEADY, CONTROLS_3D, ode, path, outputs)
@@ -290,6 +304,22 @@ def build_3d_steady_lean(wprime_model: WPrimeModel = WPrimeModel.SKIBA, *,
 
 def build_1d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
     """The 1D baseline (model.md section 6): E3, E6, E9 with n = alpha = phi = delta = 0."""
+    return _build_1d(wprime_model, line=False)
+
+
+def build_1d_line(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
+    """The 1D model on a fixed line that knows its corners ("1dline"): a point mass held
+    on a line's course (`racing_line.offset_course`), E3, E6, E9 as `build_1d`, with the
+    lateral acceleration `a_y = v^2 kappa` (the road data's curvature: the line's) in
+    C16 and C15 at the steady lean `steady_lean_rad(a_y)`, as `build_3d_steady_lean`.
+    Why: the plain 1D ignores corners (model.md section 6); on the line of a 3D plan it
+    took the Bologna hairpins at up to 3.8 g (bench/RESULTS.md, 2026-12-02)."""
+    return _build_1d(wprime_model, line=True)
+
+
+def _build_1d(wprime_model: WPrimeModel, *, line: bool) -> SpatialModel:
+    """`build_1d` (`line` False) or `build_1d_line`: one ODE, their own path constraints."""
+    name = "1dline" if line else "1d"
     x = ca.SX.sym("x", len(STATES_1D))
     u = ca.SX.sym("u", len(CONTROLS_1D))
     road = ca.SX.sym("road", len(ROAD))
@@ -298,13 +328,23 @@ def build_1d(wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
     q = _par(p)
     v_dot, e_dot = _longitudinal(v, w_n, e_n, road[2], road[1], q, wprime_model)
     x_dot = ca.vertcat(v_dot, _command_rate(u[0], q["power_rate_max"], q["p_max"]), e_dot)
-    ode = _spatial_ode(f"ode1d_{wprime_model.value}", x, u, road, p, x_dot,
+    # The ODE's name keys the compiled kernels (`ocp.transcription`): one per model.
+    ode = _spatial_ode(f"ode{name}_{wprime_model.value}", x, u, road, p, x_dot,
                        ca.fmax(v, _V_GUARD_MPS), (q["w_power"] * u[0] ** 2,))
-    friction = _ax_squared(v, w_n, q)
-    path = ca.Function("path1d", [x, p], [friction - 1], ["x", "p"], ["g"])
-    outputs = ca.Function("out1d", [x, p], [_report(v, w_n, 0 * v, friction, q)],
-                          ["x", "p"], ["y"])
-    return SpatialModel("1d", STATES_1D, CONTROLS_1D, ode, path, outputs)
+    if not line:
+        friction = _ax_squared(v, w_n, q)
+        path = ca.Function("path1d", [x, road, p], [friction - 1], ["x", "road", "p"], ["g"])
+        outputs = ca.Function("out1d", [x, p], [_report(v, w_n, 0 * v, friction, q)],
+                              ["x", "p"], ["y"])
+        return SpatialModel(name, STATES_1D, CONTROLS_1D, ode, path, outputs)
+    ay = v * v * road[0]
+    friction = _friction(v, w_n, ay, q)
+    pedal = _pedal_gate(w_n, cast(ca.SX, steady_lean_rad(ay)), q)  # C15 at the steady lean
+    path = ca.Function("path1dline", [x, road, p], [ca.vertcat(friction - 1, pedal)],
+                       ["x", "road", "p"], ["g"])
+    outputs = ca.Function("out1dline", [x, road, p], [_report(v, w_n, ay, friction, q)],
+                          ["x", "road", "p"], ["y"])
+    return SpatialModel(name, STATES_1D, CONTROLS_1D, ode, path, outputs)
 
 
 def _report(v: ca.SX, w_n: ca.SX, ay: ca.SX, friction: ca.SX, q: dict[str, ca.SX]) -> ca.SX:
@@ -321,16 +361,15 @@ def _report(v: ca.SX, w_n: ca.SX, ay: ca.SX, friction: ca.SX, q: dict[str, ca.SX
 
 
 def build_model(kind: str, wprime_model: WPrimeModel = WPrimeModel.SKIBA) -> SpatialModel:
-    """`build_3d` or `build_1d` by name.
+    """`build_3d`, `build_1d` or `build_1d_line` by name (`MODELS`).
 
     Raises:
         ValueError: unknown model name.
     """
-    if kind == "3d":
-        return build_3d(wprime_model)
-    if kind == "1d":
-        return build_1d(wprime_model)
-    raise ValueError(f"unknown model {kind!r}: choose '3d' or '1d'")
+    builders = {"3d": build_3d, "1d": build_1d, "1dline": build_1d_line}
+    if kind not in builders:
+        raise ValueError(f"unknown model {kind!r}: choose one of {', '.join(MODELS)}")
+    return builders[kind](wprime_model)
 
 
 def rk4_step(model: SpatialModel, substeps: int) -> ca.Function:

@@ -1,6 +1,8 @@
 """The minimum-time pacing-and-cornering OCP over a whole course (model.md section 5).
 
-`solve_plan(course, rider, conditions, settings, model="3d"|"1d") -> Plan`:
+`solve_plan(course, rider, conditions, settings, model="3d"|"1d"|"1dline") -> Plan`
+("1dline": the 1D model on a fixed line that knows its corners, solved on a line's
+course: `ocp.line_plan`, `model.dynamics.build_1d_line`):
 
 1. mesh: non-uniform nodes (`mesh.build_mesh`: ~1 m in corners, up to `h_max_m` on
    straights) and the road data per interval;
@@ -34,6 +36,7 @@ import numpy as np
 from itt_planner.course.geometry import Course
 from itt_planner.errors import SolveError
 from itt_planner.model.conditions import Conditions
+from itt_planner.model.dynamics import MODELS
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.course_budget import Budget
 from itt_planner.ocp.course_nlp import PrimalDual, check_inputs, cut_nodes, start_speed
@@ -90,8 +93,9 @@ def solve_plan_point(course: Course, rider: Rider, conditions: Conditions = Cond
                      ) -> tuple[Plan, PrimalDual | None]:
     """`solve_plan`, and the primal-dual point of the plan if it converged (for a warm
     re-solve of the rest of the course from it)."""
-    if model not in ("3d", "1d"):
-        raise SolveError(f"unknown model {model!r}: choose '3d' or '1d'", status="invalid_input")
+    if model not in MODELS:
+        raise SolveError(f"unknown model {model!r}: choose one of {', '.join(MODELS)}",
+                         status="invalid_input")
     check_inputs(course, settings)
     t_start = time.perf_counter()
     cpu_start = time.process_time()

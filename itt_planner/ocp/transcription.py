@@ -9,33 +9,33 @@ of the instability (prototype: RK4 per 1-2 m converged in 2.5x fewer iterations 
 Layout: the decision vector is ordered stage by stage, `[x_0, u_0, s_0, x_1, u_1, s_1,
 ..., x_N (, e)]` (`s_k`: slacks of the softened path constraints, `e`: the terminal W'
 slack; both only when `soft`). The constraints are the continuity gaps (interval-major),
-then the path constraints C15/C16 (node-major), then the acceleration bounds (one per
-interval, below), then the soft terminal condition.
+then the path constraints C15/C16 (node-major; node k's with interval k's road data, the
+last node's with the last interval's, but the curvature over the node's two intervals,
+`verify.node_curvature`: with interval k's a node at an arc's end had the straight's),
+then the acceleration bounds (one per interval, below), then the soft terminal condition.
 
-Acceleration bound (issue 18, sound transcription at every speed): in the spatial
-domain `dv/ds = a / v`, so one RK4 step of 10 m from 0.5 m/s turned 560 W into 580 m/s,
-and IPOPT found a "rest and sprint" optimum that rode on that artefact. Whatever the
-integrator does, a physical ride cannot gain speed faster than the tyres (C16,
-`mu_x g`) plus gravity (and a tail wind's push) allow, so every interval carries
-`(v_{k+1}^2 - v_k^2) / (2 ds) <= mu_x g - g sin(beta) + k_v V_w^2 / m` (rolling
-resistance and drag only make the true bound tighter; it is never active at a physical
-optimum). It couples the speeds of two neighbouring nodes only: its Jacobian has two
-entries per row and its Hessian is diagonal (folded into the stage kernels' `v^2` term).
+Acceleration bound (issue 18, sound transcription at every speed): in the spatial domain
+`dv/ds = a / v`, so one RK4 step of 10 m from 0.5 m/s turned 560 W into 580 m/s, and
+IPOPT found a "rest and sprint" optimum that rode on that artefact. Whatever the
+integrator does, a physical ride cannot gain speed faster than the tyres (C16, `mu_x g`)
+plus gravity (and a tail wind's push) allow, so every interval carries `(v_{k+1}^2 -
+v_k^2) / (2 ds) <= mu_x g - g sin(beta) + k_v V_w^2 / m` (rolling resistance and drag
+only make the true bound tighter; never active at a physical optimum). It couples the
+speeds of two neighbouring nodes only: its Jacobian has two entries per row and its
+Hessian is diagonal (folded into the stage kernels' `v^2` term).
 Everything that changes between solves is a bound (initial state, road widths, W' >= 0)
-or an NLP parameter (road data per interval, model parameters, terminal data), so one
-NLP serves any course section with the same node count: the horizon planner builds it
-once, and the full-course solver once per node count.
+or an NLP parameter (road data, model parameters, terminal data: not in the sparsity
+patterns), so one NLP serves any section with the same node count.
 
 Derivatives: the Lagrangian's Hessian is block diagonal (one block per stage: interval
 cost, integrator and path constraints of that stage) and the constraint Jacobian is
 block banded. Instead of letting CasADi differentiate an N-times-mapped graph (the
 prototype spent 90 % of its time there), six small per-stage kernels - the integrator,
 its Jacobian, the stage Hessian, the path constraints, the final-node Hessian and the
-cost gradient (the objective's gradient alone, called twice per iteration: with the
-integrator's Jacobian it cost as much as the constraint Jacobian) - are
-derived once, compiled to C once per machine (`codegen.compiled`), mapped over the
-stages, and their dense blocks scattered into the known sparsity patterns. IPOPT gets
-them through its `grad_f`, `jac_g` and `hess_lag` options.
+cost gradient (called twice per iteration: with the integrator's Jacobian it cost as
+much as the constraint Jacobian) - are derived once, compiled to C once per machine
+(`codegen.compiled`), mapped over the stages, and their dense blocks scattered into the
+known sparsity patterns. IPOPT gets them through its `grad_f`, `jac_g` and `hess_lag`.
 """
 
 from __future__ import annotations
@@ -165,16 +165,16 @@ def _build_kernels(model: SpatialModel, substeps: int, compile_c: bool
                    ) -> tuple[ca.Function, ...]:
     nx, nu = model.nx, model.nu
     x, u = ca.SX.sym("x", nx), ca.SX.sym("u", nu)
-    road, p = ca.SX.sym("road", len(ROAD)), ca.SX.sym("p", len(PARAMS))
-    n_path = int(model.path.size1_out(0))
+    # road: the interval's (integrator); road_n: the node's (path constraints; docstring).
+    road, road_n = ca.SX.sym("road", len(ROAD)), ca.SX.sym("road_n", len(ROAD))
+    p, n_path = ca.SX.sym("p", len(PARAMS)), int(model.path.size1_out(0))
     sigma, lam, mu = ca.SX.sym("sigma"), ca.SX.sym("lam", nx), ca.SX.sym("mu", n_path)
     v_target, v_weight = ca.SX.sym("v_target"), ca.SX.sym("v_weight")
-    # nu_v: the node's share of the acceleration bounds' Hessian (coefficient of v^2).
-    nu_v = ca.SX.sym("nu_v")
+    nu_v = ca.SX.sym("nu_v")  # the node's share of the acceleration bounds' Hessian (v^2)
     tag = f"{model.ode.name()}_{substeps}_acc"
     xf, dt, dj = rk4_step(model, substeps)(x, u, road, p)
     z = ca.vertcat(x, u)
-    g = model.path(x, p)
+    g = model.path(x, road_n, p)  # the road is a parameter, not a variable
     v_sq = x[model.index("v")] ** 2
     lag = sigma * dj + ca.dot(lam, xf) + ca.dot(mu, g) + nu_v * v_sq
     lag_n = (ca.dot(mu, g) + sigma * v_weight * (x[model.index("v")] - v_target) ** 2
@@ -182,10 +182,10 @@ def _build_kernels(model: SpatialModel, substeps: int, compile_c: bool
     kernels = [
         ca.Function(f"itt_F_{tag}", [x, u, road, p], [xf, dt, dj]),
         ca.Function(f"itt_JF_{tag}", [x, u, road, p], [ca.densify(ca.jacobian(xf, z))]),
-        ca.Function(f"itt_HK_{tag}", [x, u, road, p, sigma, lam, mu, nu_v],
+        ca.Function(f"itt_HK_{tag}", [x, u, road, road_n, p, sigma, lam, mu, nu_v],
                     [ca.densify(ca.hessian(lag, z)[0])]),
-        ca.Function(f"itt_P_{tag}", [x, p], [g, ca.densify(ca.jacobian(g, x))]),
-        ca.Function(f"itt_HN_{tag}", [x, p, sigma, mu, v_target, v_weight, nu_v],
+        ca.Function(f"itt_P_{tag}", [x, road_n, p], [g, ca.densify(ca.jacobian(g, x))]),
+        ca.Function(f"itt_HN_{tag}", [x, road_n, p, sigma, mu, v_target, v_weight, nu_v],
                     [ca.densify(ca.hessian(lag_n, x)[0])]),
         ca.Function(f"itt_GF_{tag}", [x, u, road, p], [ca.densify(ca.gradient(dj, z))]),
     ]
@@ -277,13 +277,13 @@ def _hessian_pattern(lay: Layout) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _hessian(lay: Layout, kernels: tuple[ca.Function, ca.Function],
-             states: tuple[ca.MX, ca.MX, ca.MX], road: ca.MX, par: ca.MX, term: ca.MX,
-             lam_f: ca.MX, lam_g: ca.MX, ds_k: ca.MX, slack_weight: float) -> ca.MX:
+             states: tuple[ca.MX, ca.MX, ca.MX], roads: tuple[ca.MX, ca.MX], par: ca.MX,
+             term: ca.MX, lam_f: ca.MX, lam_g: ca.MX, ds_k: ca.MX, slack_weight: float
+             ) -> ca.MX:
     """The upper triangle of the Lagrangian's Hessian (sparse MX): the stage kernels'
     dense blocks (`hk_k`, `hn_k`) scattered into `_hessian_pattern`. `states`: the node
-    states, the controls and the last node's states."""
-    hk_k, hn_k = kernels
-    xs, us, x_last = states
+    states, the controls and the last node's states; `roads`: the intervals', the nodes'."""
+    (hk_k, hn_k), (road, node_road), (xs, us, x_last) = kernels, roads, states
     nx, n, n_path = lay.nx, lay.n_intervals, lay.n_path
     ng_gap, ng_path = nx * n, n_path * (n + 1)
     lam_gap = ca.reshape(lam_g[:ng_gap], nx, n)
@@ -295,9 +295,9 @@ def _hessian(lay: Layout, kernels: tuple[ca.Function, ca.Function],
         nu_node = ca.horzcat(0, nu_ds) - ca.horzcat(nu_ds, 0)
     else:
         nu_node = ca.MX.zeros(1, n + 1)
-    h_stage = hk_k.map(n)(xs[:, :n], us, road, par, lam_f, lam_gap, mu[:, :n],
-                          nu_node[0, :n])
-    h_final = hn_k(x_last, par, lam_f, mu[:, n], term[1], term[2], nu_node[0, n])
+    h_stage = hk_k.map(n)(xs[:, :n], us, road, node_road[:, :n], par, lam_f, lam_gap,
+                          mu[:, :n], nu_node[0, :n])
+    h_final = hn_k(x_last, node_road[:, n], par, lam_f, mu[:, n], term[1], term[2], nu_node[0, n])
     hvals = [ca.vec(h_stage), ca.vec(h_final)]
     if lay.ns:
         hvals += [2 * lam_f * slack_weight, 2 * lam_f * _TERMINAL_SLACK_FACTOR * slack_weight]
@@ -322,9 +322,8 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
         n_intervals: number of shooting intervals N (node count N+1).
         substeps: RK4 steps per interval.
         soft: soften the path constraints with penalised slacks (L1 + L2, one per stage
-            and constraint) and add the soft terminal treatment (`TERMINAL`):
-            `E_n(N) >= e_n_target - e`, and
-            `v_price * (v(N) - v_target) + v_weight * (v(N) - v_target)^2`.
+            and constraint) and add the soft terminal treatment (`TERMINAL`): `E_n(N) >=
+            e_n_target - e`, and `v_price (v(N) - v_target) + v_weight (v(N) - v_target)^2`.
         slack_weight: penalty per unit slack (seconds of objective).
         compile_c: compile the stage kernels to C (cached per machine).
     """
@@ -336,8 +335,7 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
 
     # ---- decision variables, parameters, multipliers ---------------------------------
     w = ca.MX.sym("w", lay.n_var)
-    n_p = len(ROAD) * n + len(PARAMS) + (len(TERMINAL) if soft else 0)
-    p = ca.MX.sym("p", n_p)
+    p = ca.MX.sym("p", len(ROAD) * n + len(PARAMS) + (len(TERMINAL) if soft else 0))
     body = ca.reshape(w[: st * n], st, n)
     x_last = w[st * n: st * n + nx]
     xs = ca.horzcat(body[:nx, :], x_last)
@@ -345,13 +343,16 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     road = ca.reshape(p[: len(ROAD) * n], len(ROAD), n)
     par = p[len(ROAD) * n: len(ROAD) * n + len(PARAMS)]
     term = p[len(ROAD) * n + len(PARAMS):] if soft else ca.MX.zeros(len(TERMINAL))
-    ng_acc = n if accel_bound else 0
-    ng = lay.n_g
+    ng_acc, ng = (n if accel_bound else 0), lay.n_g
     lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", ng)
 
     # ---- objective and constraints ------------------------------------------------------
     x_next, dt, dj = f_k.map(n)(xs[:, :n], us, road, par)
-    path, path_jac = p_k.map(n + 1)(xs, par)
+    turn, h = road[0, :] * road[3, :], road[3, :]  # node k's road data: module docstring
+    node_road = ca.vertcat((ca.horzcat(0, turn) + ca.horzcat(turn, 0))
+                           / (ca.horzcat(0, h) + ca.horzcat(h, 0)),
+                           ca.horzcat(road[1:, :], road[1:, n - 1]))
+    path, path_jac = p_k.map(n + 1)(xs, node_road, par)
     f = ca.sum2(dj)
     g_gap = ca.vec(x_next - xs[:, 1:])
     g_acc, v_to, v_from, ds_k = _acceleration_bound(xs[iv, :], road, par, n)
@@ -383,8 +384,8 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     jac_g = ca.MX(sp_j, values[src_j])
 
     # ---- Hessian of the Lagrangian: block diagonal, upper triangle -------------------------
-    hess = _hessian(lay, (hk_k, hn_k), (xs, us, x_last), road, par, term, lam_f, lam_g,
-                    ds_k, slack_weight)
+    hess = _hessian(lay, (hk_k, hn_k), (xs, us, x_last), (road, node_road), par, term,
+                    lam_f, lam_g, ds_k, slack_weight)
 
     derivatives = {
         "grad_f": ca.Function("grad_f", [w, p], [f, grad_f], ["x", "p"], ["f", "grad_f_x"]),
@@ -392,7 +393,8 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
         "hess_lag": ca.Function("hess_lag", [w, p, lam_f, lam_g], [hess],
                                 ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]),
     }
-    evaluate = ca.Function("evaluate", [w, p], [dt, model.outputs.map(n + 1)(xs, par)],
+    out_args = (xs, node_road, par) if model.outputs.n_in() == 3 else (xs, par)
+    evaluate = ca.Function("evaluate", [w, p], [dt, model.outputs.map(n + 1)(*out_args)],
                            ["w", "p"], ["dt", "y"])
     return Transcription(model, lay, {"x": w, "p": p, "f": f, "g": g}, derivatives,
                          *lay.g_bounds(), evaluate)

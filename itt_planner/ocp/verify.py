@@ -19,6 +19,10 @@ braked to 0.5 m/s and then "accelerated" to 258 m/s within 10 m came out as
   (`_MAX_STEP_M`) so that no mesh interval's power can be stepped over. Speed starts
   from the plan's start speed and is free after that, so an integration artefact shows
   as a speed, time or W' mismatch.
+- Path constraints (every model given): C16 and C15 (`model.path`) at the plan's
+  nodes, with the course's curvature on the nodes' scale (`node_curvature`, as the
+  OCP has it): the 1D model on a line (`build_1d_line`) reads its corners from it, so
+  a plan of another model, or one that left its constraints, cannot pass as one.
 - Lateral check (3D): the roll mode is an unstable pendulum (~0.45 s), so an open-loop
   replay of the steering over a whole course diverges whatever the plan; instead every
   interval is re-integrated from the plan's node with a 16x finer RK4 step (one
@@ -73,6 +77,10 @@ class VerifyTolerance:
             `w_prime_j + w_prime_rel * W'_0` (the E9 switch is smoothed over ~5 W in the OCP).
         lateral_m, heading_rad, roll_rad: 3D only, largest per-interval defect of the
             lateral offset, relative heading and lean against the fine re-integration.
+        path: largest value of a path constraint `g <= 0` at a node (C16's friction use
+            squared minus 1: 0.04 is a friction use of 1.02, `line_plan.line_corners`'s
+            slack; C15's W_n over its gate). A converged plan has them <= IPOPT's
+            tolerance; the plain 1D through a 15 m bend has 3 (tests/ocp/test_line_model.py).
     """
 
     speed_abs_mps: float = 0.3
@@ -84,6 +92,7 @@ class VerifyTolerance:
     lateral_m: float = 0.05
     heading_rad: float = 0.01
     roll_rad: float = 0.02
+    path: float = 0.04
 
 
 @dataclass(frozen=True)
@@ -101,6 +110,7 @@ class Verification:
     max_lateral_defect_m: float
     max_heading_defect_rad: float
     max_roll_defect_rad: float
+    max_path_violation: float
     worst: str
     worst_s_m: float
     worst_ratio: float
@@ -118,7 +128,8 @@ def verify_plan(plan: Plan, course: Course, rider: Rider, conditions: Conditions
                 tolerance: VerifyTolerance = VerifyTolerance()) -> Verification:
     """Replay `plan`'s controls (module docstring) and compare with the plan.
 
-    `model` (3D only) enables the lateral check, with the transcription's `substeps`.
+    `model` enables the path check (`model.path`) and, 3D, the lateral check with the
+    transcription's `substeps`.
     A replay that cannot be integrated (non-finite plan, a speed that collapses to 0)
     is a failed verification, never an exception.
     """
@@ -138,7 +149,12 @@ def verify_plan(plan: Plan, course: Course, rider: Rider, conditions: Conditions
         "time": dt / (tol.time_abs_s + tol.time_rel * plan.t_s),
         "w_prime": dw / (tol.w_prime_j + tol.w_prime_rel * rider.w_prime_j),
     }
-    lateral = {"lateral": 0.0, "heading": 0.0, "roll": 0.0}
+    lateral = {"lateral": 0.0, "heading": 0.0, "roll": 0.0, "path": 0.0}
+    if model is not None:
+        over = np.max(np.maximum(_path_values(plan, course, rider, conditions, model), 0.0),
+                      axis=0)
+        lateral["path"] = float(np.max(over))
+        ratios["path"] = over / tol.path
     if model is not None and model.name == "3d":
         defects = _interval_defects(plan, course, rider, conditions, model, substeps)
         for key, name, scale in (("lateral", "n", tol.lateral_m),
@@ -159,7 +175,8 @@ def verify_plan(plan: Plan, course: Course, rider: Rider, conditions: Conditions
         finish_time_error_s=float(t_sim[-1] - plan.t_s[-1]), max_time_error_s=float(np.max(dt)),
         max_w_prime_error_j=float(dw[iw]), max_w_prime_error_s_m=float(plan.s_m[iw]),
         max_lateral_defect_m=lateral["lateral"], max_heading_defect_rad=lateral["heading"],
-        max_roll_defect_rad=lateral["roll"], worst=worst if finite else "non-finite replay",
+        max_roll_defect_rad=lateral["roll"], max_path_violation=lateral["path"],
+        worst=worst if finite else "non-finite replay",
         worst_s_m=float(plan.s_m[worst_i]), worst_ratio=worst_ratio if finite else math.inf,
         replay_finish_s=float(t_sim[-1]), check_time_s=time.perf_counter() - t0)
 
@@ -213,6 +230,34 @@ def _replay(plan: Plan, course: Course, rider: Rider, conditions: Conditions,
         nan = np.full(plan.n_nodes, np.nan)
         return nan, nan, nan
     return sol.y[0], sol.y[2], sol.y[1] * rider.w_prime_j
+
+
+def _path_values(plan: Plan, course: Course, rider: Rider, conditions: Conditions,
+                 model: SpatialModel) -> np.ndarray:
+    """`model.path` at every node of `plan` (rows: constraints, columns: nodes), with the
+    road data of the OCP except the curvature: the course's own at the node."""
+    x = np.vstack([getattr(plan, PLAN_ARRAYS[name]) for name in model.states])
+    road = road_data(course, plan.s_m)
+    road = np.hstack([road, road[:, -1:]])
+    road[0] = node_curvature(course, plan.s_m)
+    par = ModelParams(rider, conditions).vector()
+    values: np.ndarray = np.asarray(model.path.map(plan.n_nodes)(x, road, par))
+    return values
+
+
+def node_curvature(course: Course, s_m: np.ndarray) -> np.ndarray:
+    """The course's curvature at the nodes `s_m` on their own scale, as the OCP's path
+    constraints have it (`transcription`): the heading change over each node's two
+    intervals by their length (the first and last node: their one interval's). Why not
+    `kappa_per_m` at the node: on a line course (`racing_line.offset_course`) that is
+    the derivative of a resampled polyline, noise at the grid's scale: on the Zwift
+    Bologna 3D plan's line it asked up to 13.8 m/s^2 at the plan's speeds where the
+    plan's own path (tan(delta)/L) had 9.8; on the nodes' scale 11.1 (helper H2)."""
+    turn = np.diff(course.at("theta_rad", s_m))
+    h = np.diff(s_m)
+    kappa: np.ndarray = ((np.append(0.0, turn) + np.append(turn, 0.0))
+                         / (np.append(0.0, h) + np.append(h, 0.0)))
+    return kappa
 
 
 def _interval_defects(plan: Plan, course: Course, rider: Rider, conditions: Conditions,

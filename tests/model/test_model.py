@@ -71,9 +71,10 @@ def test_pedalling_gate_and_friction_ellipse() -> None:
     rider, model = PRESETS["paper"], build_3d()
     par = ModelParams(rider, Conditions()).vector()
     lean = math.radians(25)
-    g = np.asarray(model.path(np.array([0, 0, lean, 0, 10, 0.01, 0, 1]), par)).ravel()
+    road = np.array([0.0, 0.0, 0.0, 1.0])  # the 3D's path constraints ignore it
+    g = np.asarray(model.path(np.array([0, 0, lean, 0, 10, 0.01, 0, 1]), road, par)).ravel()
     assert g[1] > 0  # pedalling at 25 deg of lean is infeasible (C15)
-    g = np.asarray(model.path(np.array([0, 0, 0.0, 0, 10, -1.0, 0, 1]), par)).ravel()
+    g = np.asarray(model.path(np.array([0, 0, 0.0, 0, 10, -1.0, 0, 1]), road, par)).ravel()
     assert g[0] == pytest.approx(0.0, abs=1e-12)  # full braking uses all the grip (C16)
 
 

@@ -24,7 +24,8 @@ MODEL = build_3d()
 def test_arc_guess_keeps_c15_c16_and_spends_w_prime() -> None:
     x, u = arc_guess(MODEL, COURSE, NODES, RIDER, Conditions(), 3.0)
     par = ModelParams(RIDER, Conditions()).vector()
-    path = np.asarray(MODEL.path.map(len(NODES))(x, par))  # friction - 1, pedal gate
+    road = np.zeros((4, len(NODES)))  # the 3D's path constraints do not read the road
+    path = np.asarray(MODEL.path.map(len(NODES))(x, road, par))  # friction - 1, pedal gate
     assert np.all(path <= 1e-9), "the guess breaks C16 or C15"
     row = {name: x[MODEL.index(name)] for name in MODEL.states}
     assert np.all(np.isfinite(x)) and np.all(np.isfinite(u))

@@ -12,6 +12,7 @@ import pytest
 from itt_planner.course.builder import build_course
 from itt_planner.course.geometry import Course
 from itt_planner.course.racing_line import line_course, shortest_line
+from itt_planner.model.conditions import GRAVITY_MPS2
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.line_plan import solve_plan_on_line
@@ -85,3 +86,24 @@ def test_1d_plan_on_the_line() -> None:
     assert plan.finish_time_s / centre.finish_time_s == pytest.approx(ratio, abs=0.005)
     assert np.max(np.abs(plan.n_m)) == pytest.approx(4.0 - MARGIN_M)
     assert plan.point_w is None
+
+
+def test_plan_on_the_line_that_knows_its_corners() -> None:
+    """`corners=True`: the 1D model that knows the line's corners ("1dline") on the same
+    shortest line: slower than the baseline round the 26.5 m inner edge, where it keeps
+    C16 (friction use <= 1) and does not pedal beyond C15's lean; the steady turn's lean
+    and steering are in the plan (a 3D re-solve's guess)."""
+    course = _u_turn(grade_pct=1.0)
+    rider = Rider()
+    plain = solve_plan_on_line(course, rider)
+    plan = solve_plan_on_line(course, rider, corners=True)
+    assert plan.model == "1dline" and plan.meta["success"], plan.meta["attempts"]
+    assert plan.meta["line"]["length_ratio"] == pytest.approx(plain.meta["line"]["length_ratio"])
+    assert plan.finish_time_s > plain.finish_time_s + 0.5
+    assert np.max(plan.friction_use) <= 1.0 + 1e-6
+    assert np.max(np.abs(plan.ay_mps2)) > GRAVITY_MPS2 * np.tan(rider.pedal_lean_max_rad)
+    lean = np.abs(plan.phi_rad)
+    assert lean == pytest.approx(np.abs(np.arctan(plan.ay_mps2 / GRAVITY_MPS2)))
+    assert np.all(plan.w_n[lean > rider.pedal_lean_max_rad] <= 0.02)
+    bend = (plan.s_m > STRAIGHT_M + 10) & (plan.s_m < STRAIGHT_M + math.pi * RADIUS_M - 10)
+    assert np.all(plan.delta_n[bend] > 0)  # steering left round the left bend
