@@ -94,7 +94,10 @@ def _human_validation(r: dict[str, Any]) -> str:
     head = (f"{r['ride']} on {r['course']} ({r['covered_m'] / 1000:.1f} km; the ride's speed x "
             f"moving time / course length {r['speed_distance_ratio']}), rider {r['rider']} "
             f"({values}):")
-    return "\n".join([head, *validation_lines(r)])
+    lines = [head, *validation_lines(r)]
+    if "elevation" in r:  # the profile the replays climbed, and why
+        lines.insert(1, f"  elevation the replays climb: {r['elevation']}")
+    return "\n".join(lines)
 
 
 def validation_lines(r: dict[str, Any]) -> list[str]:
@@ -136,6 +139,9 @@ def validate_cli(
                                       help="Calibrate on all rides but one, validate on it."),
     mass_kg: float | None = typer.Option(None, "--mass-kg", help="Mass for --holdout fits."),
     temperature_c: float | None = typer.Option(None, "--temperature-c"),
+    elevation: str = typer.Option(
+        "auto", "--elevation", help="Profile the replays climb: auto (the ride's own altitude "
+        "when the course was fitted from this ride), course, ride."),
     report: Path | None = typer.Option(None, "--report", help="Write an HTML report here."),
     cache_dir: Path = typer.Option(Path(".itt_cache"), "--cache-dir", help="Plan cache."),
     as_json: bool = JSON_OPTION,
@@ -158,7 +164,7 @@ def validate_cli(
                                    "several rides)")
         val = validate_ride(rides[0], courses[0], load_rider(rider), models=tuple(model),
                             plan_models=tuple(plan_model), temperature_c=temperature_c,
-                            cache_dir=cache_dir)
+                            elevation=elevation, cache_dir=cache_dir)
         if report is not None:
             from itt_planner.calibration.figures import write_validation_report  # noqa: PLC0415
 

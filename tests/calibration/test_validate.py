@@ -151,3 +151,19 @@ def test_holdout_two_rides(data_file: Callable[[str], Path]) -> None:
     for row, held in zip(rows, rides, strict=True):
         assert row["held_out"] == str(held) and str(held) not in row["trained_on"]
         assert np.isfinite(row["finish_error_pct"]) and row["mae_kmh"] > 0, row
+
+
+def test_cli_elevation_option(st_johns: StJohns) -> None:
+    """`validate --elevation` reaches the replays (`course`: the course's own profile, as
+    the JSON says) and an unknown source is one JSON error naming it."""
+    path, _, _, saved = st_johns
+    runner = CliRunner()
+    out = runner.invoke(app, ["validate", str(path), "--course", str(saved), "--rider", "paper",
+                              "--model", "1d", "--elevation", "course", "--json"])
+    assert out.exit_code == 0, out.output
+    assert json.loads(out.stdout)["elevation"]["source"] == "course"
+    out = runner.invoke(app, ["validate", str(path), "--course", str(saved), "--rider", "paper",
+                              "--elevation", "barometer", "--json"])
+    assert out.exit_code == 1
+    err = json.loads(out.stdout)
+    assert err["type"] == "CalibrationError" and "'barometer'" in err["error"]
