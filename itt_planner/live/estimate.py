@@ -84,6 +84,9 @@ class EstimatorSettings:
             edge would make the planner brake for a road edge the rider is not at).
         global_window_m: a local search window wider than this (after a long gap)
             becomes a global search that prefers the predicted `s`.
+        start_reach_m: a first fix (or a re-acquisition before the rider is this far
+            along) within this of the course's first point places the rider at the start,
+            not at a pass of the road elsewhere (`map_match`: a loop's finish).
         wprime_model: E9 variant.
     """
 
@@ -106,6 +109,7 @@ class EstimatorSettings:
     lateral_tau_s: float = 10.0
     lateral_edge_m: float = 1.0
     global_window_m: float = 2000.0
+    start_reach_m: float = 50.0
     wprime_model: WPrimeModel = WPrimeModel.SKIBA
 
 
@@ -302,8 +306,10 @@ class StateEstimator:
 
     # ---- Kalman filter on (s, v) ----------------------------------------------------------
     def _first_fix(self, fix: GpsFix, x: float, y: float, std: float) -> bool:
-        """The first fix places the rider: matched on the whole course from its start."""
-        match = self._matcher.nearest_pass(x, y, prefer_s=0.0)
+        """The first fix places the rider: at the start if it is within reach of it
+        (`map_match`), else matched on the whole course from its start."""
+        match = (self._matcher.start_match(x, y, self.settings.start_reach_m)
+                 or self._matcher.nearest_pass(x, y, prefer_s=0.0))
         if match is None:
             return self._reject("gps_off_course", fix)
         self._init(fix.stamp_s, match, std)
@@ -378,7 +384,10 @@ class StateEstimator:
     def _reacquire(self, x: float, y: float, std: float) -> bool:
         """Lost: several fixes in a row rejected. Match the latest one globally."""
         self.counters["gps_reacquire_attempts"] += 1
-        match = self._matcher.nearest_pass(x, y, prefer_s=self._x[0])
+        match = None
+        if self._s_pub < self.settings.start_reach_m:  # not yet away from the start
+            match = self._matcher.start_match(x, y, self.settings.start_reach_m)
+        match = match or self._matcher.nearest_pass(x, y, prefer_s=self._x[0])
         if match is None:
             return self._reject("gps_off_course", "lost, no course point near the fix")
         log.warning("estimator: lost for %d fixes, re-acquired at s=%.0f m (filter had %.0f m)",

@@ -234,7 +234,9 @@ RIDES = ["edge1000_ardennes_2019.fit", "edge810_vector_stjohns_2013.fit",
 def test_real_ride_on_its_own_track(data_file: Callable[[str], Path], name: str) -> None:
     """Every record of the real ride is fed as it was recorded (gaps, pauses, GPS jumps,
     NaNs and power spikes included); the course is the ride's own fitted track. The
-    whole ride is used (the estimator runs at ~10 k samples/s)."""
+    whole ride is used (the estimator runs at ~10 k samples/s). The ride starts at the
+    start and is mid-course mid-ride (the Ardennes loop's first fix, 14 m before the
+    start, once matched its finish 6 m away: "finished" for the whole ride)."""
     rec = read_recording(data_file(f"rides/{name}"))
     course = fit_course(rec)
     est = _estimator(course)
@@ -254,6 +256,8 @@ def test_real_ride_on_its_own_track(data_file: Callable[[str], Path], name: str)
             assert 0.0 <= state.w_prime_j <= RIDER.w_prime_j + 1e-6
     reached = np.array(progress)
     assert np.diff(reached).min() >= 0.0
+    assert reached[0] <= EstimatorSettings().start_reach_m
+    assert 0.2 <= reached[len(reached) // 2] / course.length_m <= 0.8
     # The rider rode the whole track: progress reaches its end.
     assert reached[-1] >= 0.98 * course.length_m
     # Most fixes are on the track; the rest (GPS jumps, stretches the course fit left
