@@ -25,7 +25,7 @@ while the rider is stopped). `--plan` replays with a saved full-course plan
 
 Usage: .venv/bin/python bench/bench_horizon_ride.py [--rider RIDER.yaml] (default:
        bench/bologna_rider.yaml) [--ride FILE.tcx] [--model 3d|1d] [--cache-dir DIR]
-       [--stop-s SECONDS] [--course-replan-period 0] [--course-resolve-model 3d|1d-line]
+       [--stop-s SECONDS] [--course-replan-period 0] [--course-resolve-model auto|3d|1d-line]
        [--plan FILE.plan.npz]
        [--advice-out FILE.npz] (each advice's stamp, s, target power, cue, fallback)
        [--compare-to FILE.npz] (another run's `--advice-out`: the JSON's `advice_delta`
@@ -94,7 +94,7 @@ def main() -> None:
     ap.add_argument("--stop-s", type=float, default=math.inf, help="replay this much only")
     ap.add_argument("--course-replan-period", type=float, default=0.0)
     ap.add_argument("--course-resolve-model", default="3d",
-                    help="what a re-solve solves: 3d, or 1d-line (live.resolve_model)")
+                    help="what a re-solve solves: auto, 3d, or 1d-line (live.resolve_model)")
     ap.add_argument("--plan", default="", help="a saved full-course plan (else the cache's)")
     ap.add_argument("--advice-out", type=Path, default=None, help="save the advice (npz)")
     ap.add_argument("--compare-to", type=Path, default=None, help="advice saved by another run")

@@ -67,8 +67,9 @@ def replay_cli(
     model: str = typer.Option("3d", "--model", help="Full-course plan model: 3d or 1d."),
     resolve_model: str = typer.Option(
         "3d", "--course-resolve-model",
-        help="What a re-solve of the rest of the course solves: 3d, or 1d-line (the 1D on "
-             "the plan's line where no corner ahead needs the 3D, else the 3D)."),
+        help="What a re-solve of the rest of the course solves: auto (3d within 20 km of "
+             "the finish, 1d-line before), 3d, or 1d-line (the 1D that knows the corners "
+             "of the plan's line; the 3D where its plan is refused)."),
     cache_dir: Path = typer.Option(Path(".itt_cache"), "--cache-dir",
                                    help="Where full-course plans are cached."),
     live_timing: bool = typer.Option(

@@ -55,6 +55,7 @@ from itt_planner.live.resolve_model import (
     RESOLVE_3D,
     RESOLVE_MODELS,
     LineCache,
+    chosen_model,
     on_line,
     solve_rest,
 )
@@ -88,8 +89,12 @@ class CourseReplanSettings:
             doubles (`resolve_gate`); a rider who keeps to one this long resets it.
         backoff_max_s: the longest interval the back-off reaches.
         model: what a re-solve solves: `RESOLVE_3D` (the 3D OCP of the rest of the
-            road) or `RESOLVE_1D_LINE` (the 1D OCP on the line of the last 3D plan in
-            force where its corners allow, else the 3D: `resolve_model`).
+            road), `RESOLVE_1D_LINE` (the 1D OCP that knows the corners on the line of
+            the last 3D plan in force, the 3D if its plan is refused) or `RESOLVE_AUTO`
+            (the 3D within `auto_3d_max_m` of the finish, the 1D on the line before:
+            `resolve_model`).
+        auto_3d_max_m: under `RESOLVE_AUTO`, a rest of the course at most this long is
+            re-solved in 3D (its CPU grows with the rest; the cap above is 60 s).
     """
 
     period_s: float = 30.0
@@ -102,6 +107,7 @@ class CourseReplanSettings:
     backoff_within_s: float = 30.0
     backoff_max_s: float = 240.0
     model: str = RESOLVE_3D
+    auto_3d_max_m: float = 20_000.0
 
     def __post_init__(self) -> None:
         if self.model not in RESOLVE_MODELS:
@@ -233,12 +239,14 @@ class CourseReplanner:
         warm = self._point[1] if self._point is not None and self._point[0] is guess else None
         self.last_warm = warm is not None
         line_n = None
-        if st.model == RESOLVE_1D_LINE:
-            if self._line_source is None or not on_line(guess):
-                self._line_source = guess
+        # The line the 1D re-solves ride: the last 3D plan's, kept across 1D re-solves.
+        if st.model != RESOLVE_3D and (self._line_source is None or not on_line(guess)):
+            self._line_source = guess
+        model = chosen_model(st.model, self.course.length_m - start.s_m, st.auto_3d_max_m)
+        if model == RESOLVE_1D_LINE and self._line_source is not None:
             src = self._line_source
             line_n = np.interp(self.course.s_m, src.s_m, src.n_m)
-        job = (st.model, self.course, rider, self.conditions, st.ocp, guess, start, warm, line_n)
+        job = (model, self.course, rider, self.conditions, st.ocp, guess, start, warm, line_n)
         self._pending = (stamp_s, self._waiter.submit(self._solve_in_worker, job))
         return True
 

@@ -18,8 +18,17 @@ counts them (`plan_in_force`). On the 14 re-solves of a Zwift Bologna replay, so
 offline from the same starts (bench/RESULTS.md, 2026-12-02, helper H2): all 14
 rideable and used, 16.0 s CPU against the 3D's 53.6 s (-70 %); the rest predicted
 0.0-1.8 % (median 0.46 %) slower than the 3D's, as the steady lean of C15 stops the
-pedalling where the 3D's lean, a state, lags the turn. The default stays `RESOLVE_3D`
-(why: that section).
+pedalling where the 3D's lean, a state, lags the turn.
+
+`RESOLVE_AUTO`: the 3D where the rest of the course is at most
+`CourseReplanSettings.auto_3d_max_m` (20 km), the 1D on the line before. Why: a 3D
+re-solve's CPU grows with the rest of the course, and the worker's cap is 60 s
+(`CourseReplanSettings.ocp`): on the St John's ride (41.3 km, calibrated rider,
+bench/RESULTS.md 2026-12-02, lead) the 3D re-solves of 34-41 km took 16-93 iterations
+and one stopped at the cap after 73, while on Bologna's 16 km every 3D re-solve
+converged (8-63 iterations, 0.4-8.5 s CPU). Within 20 km of the finish the 3D's own
+corners (the lean a state, not steady) are worth its cost; before, the 1D on the line
+is within 0.5 % (median) and a third of the CPU.
 """
 
 from __future__ import annotations
@@ -46,7 +55,16 @@ log = logging.getLogger(__name__)
 #: (module docstring).
 RESOLVE_3D = "3d"
 RESOLVE_1D_LINE = "1d-line"
-RESOLVE_MODELS = (RESOLVE_3D, RESOLVE_1D_LINE)
+RESOLVE_AUTO = "auto"
+RESOLVE_MODELS = (RESOLVE_AUTO, RESOLVE_3D, RESOLVE_1D_LINE)
+
+
+def chosen_model(model: str, rest_m: float, auto_3d_max_m: float) -> str:
+    """What a re-solve of `rest_m` of course solves under `model` (`RESOLVE_AUTO`: the 3D
+    for a rest of at most `auto_3d_max_m`, module docstring)."""
+    if model == RESOLVE_AUTO:
+        return RESOLVE_3D if rest_m <= auto_3d_max_m else RESOLVE_1D_LINE
+    return model
 
 
 def on_line(plan: Plan) -> bool:

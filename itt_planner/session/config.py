@@ -42,8 +42,9 @@ class SessionConfig:
         course_replan_period_s: off the plan, the rest of the course is re-solved at most
             this often (`CourseReplanSettings`); 0.0 never.
         course_resolve_model: what such a re-solve solves (`CourseReplanSettings.model`):
-            "3d", or "1d-line" (the 1D on the line of the plan in force where no corner
-            ahead needs the 3D, else the 3D: `live.resolve_model`).
+            "auto" (the 3D within 20 km of the finish, the 1D on the plan's line before),
+            "3d", or "1d-line" (the 1D that knows the corners of the plan's line; the 3D
+            where its plan is refused): `live.resolve_model`.
         line_gate_m: the horizon plans from the advised line unless GPS puts the rider
             further off it than this (`EngineSettings`).
         diagnostics_period_s: stamp time between two diagnostics messages.

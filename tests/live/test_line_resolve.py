@@ -19,6 +19,8 @@ from itt_planner.live.course_replan import CourseReplanner, CourseReplanSettings
 from itt_planner.live.plan_in_force import PlanInForce
 from itt_planner.live.resolve_model import (
     RESOLVE_1D_LINE,
+    RESOLVE_3D,
+    RESOLVE_AUTO,
     LineCache,
     on_line,
     solve_rest,
@@ -136,6 +138,23 @@ def test_worker_resolves_on_the_line(plan: Plan) -> None:
         nxt = rp.take(215.0)
         assert nxt is not None and nxt.meta["resolve"]["model"] == RESOLVE_1D_LINE
         assert nxt.n_m == pytest.approx(np.interp(nxt.s_m, plan.s_m, plan.n_m), abs=0.05)
+    finally:
+        rp.close()
+
+
+def test_auto_resolves_on_the_line_far_from_the_finish_and_3d_near_it(plan: Plan) -> None:
+    """`auto`: the 1D on the line while more than `auto_3d_max_m` of the course is left,
+    the 3D within it (here 1 km, on this 1.4 km course)."""
+    rp = CourseReplanner(GENTLE, Conditions(), CourseReplanSettings(
+        period_s=30.0, delay_s=15.0, min_remaining_m=200.0, model=RESOLVE_AUTO,
+        auto_3d_max_m=1000.0), deterministic=True, plan=plan)
+    try:
+        assert rp.request(100.0, RIDER, plan, _start(plan, 300.0))  # 1.1 km left
+        far = rp.take(115.0)
+        assert far is not None and far.meta["resolve"]["model"] == RESOLVE_1D_LINE
+        assert rp.request(200.0, RIDER, far, _start(far, 600.0))  # 0.8 km left
+        near = rp.take(215.0)
+        assert near is not None and near.meta["resolve"]["model"] == RESOLVE_3D
     finally:
         rp.close()
 
