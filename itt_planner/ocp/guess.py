@@ -102,16 +102,13 @@ def initial_guess(model: SpatialModel, course: Course, nodes: np.ndarray, rider:
     """States (nx x N+1) and controls (nu x N) to start the NLP from."""
     if model.name == "3d":
         return arc_guess(model, course, nodes, rider, conditions, v0)
-    v = speed_guess(course, nodes, rider, conditions, v0, corners=model.name == "3d")
+    # The 1D on a line that knows its corners ("1dline") slows for them; the plain 1D
+    # ignores them (model.md section 6).
+    v = speed_guess(course, nodes, rider, conditions, v0, corners=model.name != "1d")
     x = np.zeros((model.nx, len(nodes)))
     x[model.index("v")] = v
     x[model.index("w_n")] = rider.critical_power_w / rider.max_power_w
     x[model.index("e_n")] = 1.0 - 0.95 * (nodes - nodes[0]) / max(nodes[-1] - nodes[0], 1.0)
-    if model.name == "3d":
-        kappa = course.at("kappa_per_m", nodes)
-        # Steady turn on the centre line: tan(delta) = L kappa, tan(phi) = -v^2 kappa / g (E5).
-        x[model.index("delta_n")] = np.arctan(rider.wheelbase_m * kappa) / rider.steer_max_rad
-        x[model.index("phi")] = -np.arctan(v ** 2 * kappa / GRAVITY_MPS2)
     return x, np.zeros((model.nu, len(nodes) - 1))
 
 
