@@ -93,7 +93,7 @@ def main() -> None:
     ap.add_argument("--cache-dir", default=".itt_cache")
     ap.add_argument("--stop-s", type=float, default=math.inf, help="replay this much only")
     ap.add_argument("--course-replan-period", type=float, default=0.0)
-    ap.add_argument("--course-resolve-model", default="3d",
+    ap.add_argument("--course-resolve-model", default="auto",
                     help="what a re-solve solves: auto, 3d, or 1d-line (live.resolve_model)")
     ap.add_argument("--plan", default="", help="a saved full-course plan (else the cache's)")
     ap.add_argument("--advice-out", type=Path, default=None, help="save the advice (npz)")

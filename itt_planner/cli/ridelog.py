@@ -66,7 +66,7 @@ def replay_cli(
     horizon_m: float = typer.Option(1000.0, "--horizon-m", help="Receding-horizon length (m)."),
     model: str = typer.Option("3d", "--model", help="Full-course plan model: 3d or 1d."),
     resolve_model: str = typer.Option(
-        "3d", "--course-resolve-model",
+        "auto", "--course-resolve-model",
         help="What a re-solve of the rest of the course solves: auto (3d within 20 km of "
              "the finish, 1d-line before), 3d, or 1d-line (the 1D that knows the corners "
              "of the plan's line; the 3D where its plan is refused)."),

@@ -53,6 +53,7 @@ from itt_planner.errors import SolveError
 from itt_planner.live.resolve_model import (
     RESOLVE_1D_LINE,
     RESOLVE_3D,
+    RESOLVE_AUTO,
     RESOLVE_MODELS,
     LineCache,
     chosen_model,
@@ -106,7 +107,7 @@ class CourseReplanSettings:
     # after the request); 8 periods: a rider who keeps to none is re-solved every 4 min.
     backoff_within_s: float = 30.0
     backoff_max_s: float = 240.0
-    model: str = RESOLVE_3D
+    model: str = RESOLVE_AUTO
     auto_3d_max_m: float = 20_000.0
 
     def __post_init__(self) -> None:

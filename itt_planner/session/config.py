@@ -63,7 +63,7 @@ class SessionConfig:
     replan_period_s: float = 1.0
     on_plan_band_j: float = 2000.0
     course_replan_period_s: float = 30.0
-    course_resolve_model: str = "3d"
+    course_resolve_model: str = "auto"
     line_gate_m: float = 5.0
     diagnostics_period_s: float = 1.0
     deterministic: bool = False
