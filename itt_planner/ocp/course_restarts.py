@@ -21,10 +21,14 @@ start may use `_FIRST_SHARE` of it):
   cold start on the full mesh forms a node or two per iteration (2026-12-01, H5). If
   the coarse run does not converge, the cold start on the full mesh as before;
 - windows first (3D, cold as above, a course longer than `OcpSettings.window_min_m`):
-  the 1D plan, then the 3D model on overlapping windows of ~15 km from it, then a run
-  on the full mesh resumed from their stitched primal-dual point (`course_windows`,
-  why there). If the 1D plan or a window does not converge, the
-  coarse mesh first or the cold start as without;
+  the 1D plan, then the 3D model on overlapping windows of ~12 km of work (shorter
+  among corners) from it, each cold on its own nodes of the full mesh (no coarse mesh
+  first: on Ardennes that failed in 2 of 4 windows of 15 km, and a window's own run
+  costs less than a coarse and a fine one, bench/RESULTS.md, 2026-12-02, H3), then a
+  run on the full mesh resumed from their stitched primal-dual point (`course_windows`,
+  why there). A window that gives up early is restarted with the smaller bound push
+  below. If the 1D plan or a window does not converge, the coarse mesh first or the
+  cold start as without;
 - early failure (`solver.SolveResult.gave_up_early`): the same start with a smaller
   bound push (on short courses the 3D model ended in Restoration_Failed with IPOPT's
   default push and converged in 39-64 iterations with 1e-4);
@@ -67,8 +71,8 @@ start may use `_FIRST_SHARE` of it):
 from __future__ import annotations
 
 import dataclasses
-import functools
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
@@ -93,6 +97,7 @@ from itt_planner.ocp.course_windows import (
     plan_between,
     plan_windows,
     stitch,
+    window_corners_per_km,
     window_start,
 )
 from itt_planner.ocp.guess import plan_spacing_cap
@@ -231,7 +236,9 @@ class CourseSolve:
         if not base.meta.get("success"):
             return None
         st, run, usable = self.settings, self.budget.run, self.budget.usable
-        wins = plan_windows(prob.nodes, st.window_m, st.window_overlap_m)
+        apex = np.array([c.apex_s_m for c in self.course.corners])
+        wins = plan_windows(prob.nodes, st.window_m, st.window_overlap_m, apex,
+                            st.window_corner_m)
         runs: list[SolveResult] = []
         win_nlp: CourseNlp | None = None
         for k, win in enumerate(wins):
@@ -243,16 +250,18 @@ class CourseSolve:
                 win.first - wins[k - 1].first, float(nodes[0]))
             reserve = end_reserve(base, float(nodes[-1]), self.rider.w_prime_j,
                                   st.e_final_min, last=k == len(wins) - 1)
-            make = functools.partial(self._window_nlp, base, reserve, start)
-            win_nlp = make(nodes)
-            label = f"window {k + 1}/{len(wins)} ({nodes[0] / 1e3:.1f}-{nodes[-1] / 1e3:.1f} km)"
-            # Each window gets an equal share of what is left, one share kept for the polish;
-            # a window as long as Bologna from the coarse mesh first, as a course would.
+            # Among dense corners the default (arc) guess, elsewhere the 1D plan (module
+            # docstring: the 1D plan's corner speeds do not match the guess's lean there).
+            dense = (window_corners_per_km(nodes, apex) > st.window_arc_guess_corners_per_km)
+            win_nlp = self._window_nlp(None if dense else base, reserve, start, nodes)
+            label = (f"window {k + 1}/{len(wins)} ({nodes[0] / 1e3:.1f}-{nodes[-1] / 1e3:.1f} km"
+                     f"{', arc guess' if dense else ''})")
+            # Each window gets an equal share of what is left, one share kept for the polish.
             share = 1.0 / (len(wins) - k + 1)
-            res = (self._from_coarse(win_nlp, make, f"{label}: ", 0.6 * share, share)
-                   if len(nodes) > _COARSE_MIN_NODES else None)
-            if res is None or res.status is PlanStatus.FAILED:
-                res = run(label, win_nlp, win_nlp.w_guess, share=share)
+            res = run(label, win_nlp, win_nlp.w_guess, share=share)
+            if res.gave_up_early and usable():
+                res = run(f"{label}, smaller bound push", win_nlp, win_nlp.w_guess,
+                          bound_push=_RETRY_BOUND_PUSH, share=share)
             if res.status is PlanStatus.CAPPED and usable():
                 res = run(f"{label}, resumed", win_nlp, res.w, share=0.5, resume=res)
             if not res.converged:
@@ -261,42 +270,42 @@ class CourseSolve:
         point = stitch(prob.tr.layout, wins, runs)
         return run("polish from the windows", prob, point.w, share=_FIRST_SHARE, resume=point)
 
-    def _from_coarse(self, prob: CourseNlp, make: Callable[[np.ndarray], CourseNlp] | None = None,
-                     label: str = "", share: float = _COARSE_SHARE,
-                     fine_share: float = _FIRST_SHARE) -> SolveResult | None:
-        """Solve on every other node of `prob`'s mesh (and its last; the NLP from `make`,
-        default this solve's own from its default guess), then resume on `prob` from that
-        point (`Budget.resume_at`); None when the coarse run did not converge (the caller
-        then starts cold on `prob`). `label` prefixes the attempts' names."""
+    def _from_coarse(self, prob: CourseNlp) -> SolveResult | None:
+        """Solve on every other node of `prob`'s mesh (and its last) from the default
+        guess, then resume on `prob` from that point (`Budget.resume_at`); None when the
+        coarse run did not converge (the caller then starts cold on `prob`)."""
         nodes = np.append(prob.nodes[:-1:2], prob.nodes[-1])
-        coarse = self.nlp(nodes, None) if make is None else make(nodes)
-        res = self.budget.run(f"{label}coarse mesh", coarse, coarse.w_guess, share=share)
+        coarse = self.nlp(nodes, None)
+        res = self.budget.run("coarse mesh", coarse, coarse.w_guess, share=_COARSE_SHARE)
         if not res.converged or res.lam_x is None or res.lam_g is None or not self.budget.usable():
             return None
         point = PrimalDual(nodes, res.w, res.lam_x, res.lam_g)
-        return self.budget.resume_at(f"{label}from the coarse mesh", prob, point,
-                                     share=fine_share)
+        return self.budget.resume_at("from the coarse mesh", prob, point, share=_FIRST_SHARE)
 
-    def _window_nlp(self, base: Plan, reserve: float, start: Start | None, nodes: np.ndarray
-                    ) -> CourseNlp:
+    def _window_nlp(self, base: Plan | None, reserve: float, start: Start | None,
+                    nodes: np.ndarray) -> CourseNlp:
         """A window's NLP on `nodes`: from `start` (the course's start if None), leaving
-        `reserve` of W' at its end, from the 1D plan `base` as its guess."""
+        `reserve` of W' at its end, from the 1D plan `base` as its guess (the default
+        guess if None)."""
         return course_nlp(self.course, self.rider, self.conditions,
                           dataclasses.replace(self.settings, e_final_min=reserve), "3d", nodes,
                           self.v0 if start is None else start.state["v"], start,
-                          plan_between(base, float(nodes[0]), float(nodes[-1])))
+                          None if base is None else plan_between(base, float(nodes[0]),
+                                                                 float(nodes[-1])))
 
     def _plan_1d(self, strategy: str, share: float) -> Plan:
         """The 1D plan of the same solve (`share` of the CPU left at most), an attempt."""
         _, secs = self.budget.left()
         st, left_m = self.settings, self.course.length_m - self.start_m
+        cpu0 = time.process_time()
         base = self.solve_1d(dataclasses.replace(
             st, max_iter=None, max_cpu_time_s=min(secs * share, st.budget("1d", left_m)[1])))
         self.budget.attempts.append({
             "strategy": strategy, "status": base.solver_status,
             "outcome": PlanStatus.of(base.solver_status).value,
             "iterations": base.iterations, "n_nodes": base.n_nodes,
-            "time_s": round(base.solve_time_s, 3)})
+            "time_s": round(base.solve_time_s, 3),
+            "cpu_s": round(time.process_time() - cpu0, 3)})
         return base
 
     def _warm_from_1d(self, prob: CourseNlp, res: SolveResult) -> SolveResult:

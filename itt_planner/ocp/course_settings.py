@@ -34,15 +34,28 @@ class OcpSettings:
         jit: compile the stage kernels to C with the machine's compiler (cached).
         verify: replay every plan (`verify.verify_plan`); off only for benchmarks of
             the solver alone.
-        window_min_m, window_m, window_overlap_m: a cold 3D solve of a course longer
-            than `window_min_m` first solves overlapping windows of about `window_m`
-            (each `window_overlap_m` into the next) and polishes their stitched point on
-            the full mesh (`course_windows`; bench/RESULTS.md, 2026-12-02, helper C). A
+        window_min_m, window_m, window_overlap_m, window_corner_m: a cold 3D solve of a
+            course longer than `window_min_m` first solves overlapping windows of about
+            `window_m` of work each (its length plus `window_corner_m` per corner: the
+            city gets shorter windows than the open road), each `window_overlap_m` into
+            the next, and polishes their stitched point on the full mesh
+            (`course_windows`; bench/RESULTS.md, 2026-12-02, helpers C and H3). A
             length, not a node count: the iterations grow with the course (the active
             arcs to form), not with the mesh (rovereto-like at half spacing, 17,133
             nodes: 187 iterations). 45 km: St John's (41.3 km) converges cold in 145
             iterations, the 57 km Ardennes ride needed 487, the 80 km Shanghai ride
-            stopped at its budget after 571.
+            stopped at its budget after 571. 12 km and 150 m per corner (15 km by
+            length alone before, each window from the coarse mesh first): Ardennes in 6
+            windows instead of 4, 134 s CPU in the windows instead of 319 (the smaller
+            windows converge cold from the 1D plan in 79-196 iterations where the 15 km
+            ones took 232-331 after a coarse run that failed).
+        window_arc_guess_corners_per_km: a window with more corner apices per km than
+            this starts from the default (arc) guess instead of the 1D plan: the 1D
+            plan's corner speeds (centre line) do not match the guess's line and lean.
+            Shanghai's city windows (4.9-8.7 per km) took 244, 343, 154 and 221
+            iterations from it, 468, 511, 173 and 334 from the 1D plan; on open road the
+            1D plan was better (Ardennes 39-50 km, 2.0 per km, from the 1D plan's state:
+            155 against 192).
     """
 
     h_min_m: float = 1.0
@@ -64,8 +77,10 @@ class OcpSettings:
     jit: bool = True
     verify: bool = True
     window_min_m: float = 45_000.0
-    window_m: float = 15_000.0
+    window_m: float = 12_000.0
     window_overlap_m: float = 2_000.0
+    window_corner_m: float = 150.0
+    window_arc_guess_corners_per_km: float = 4.0
 
     def budget(self, model: str, length_m: float) -> tuple[int, float]:
         """(iterations, seconds) for one solve of `length_m` metres with `model`.

@@ -15,14 +15,27 @@ are cut by length, not by corners); Sauerland 1,210-1,245, 343-399 s; Ardennes 9
 (cold: 487 iterations, 390 s wall).
 
 The windows split the course (from the full mesh's nodes, so that every window's nodes
-are nodes of the full mesh) into `n` equal cores; window k spans its core and
-`overlap_m` of the next one, starts from window k-1's state at its core's start (all
-states: the stitched point is continuous there) and must leave at its end the W' the
-course's 1D plan has there (`e_final_min`): the 1D plan allocates W' over the whole
-course, which a window alone cannot see. The overlap absorbs the end of a window, where
-it spends what the bound leaves and rides to a free end speed. The stitched point (each
-window's core, its multipliers too) is then polished on the full mesh by a run resumed
-from it (`Budget.run(resume=)`), which frees the W' allocation and the junctions.
+are nodes of the full mesh) into cores of equal work (`plan_windows`: length plus a
+length per corner, cut away from apices); window k spans its core and `overlap_m` of
+the next one, starts from window k-1's state at its core's start (all states: the
+stitched point is continuous there) and must leave at its end the W' the course's 1D
+plan has there (`e_final_min`): the 1D plan allocates W' over the whole course, which a
+window alone cannot see. The overlap absorbs the end of a window, where it spends what
+the bound leaves and rides to a free end speed. The stitched point (each window's core,
+its multipliers too) is then polished on the full mesh by a run resumed from it
+(`Budget.run(resume=)`), which frees the W' allocation and the junctions.
+
+Why by work, not by length (bench/RESULTS.md, 2026-12-02, helper H3): a window's
+iterations grow with its corners (Shanghai's 15 km city window 556 where the open-road
+ones took 166-210), and each costs what its nodes cost, so a shorter window where the
+corners are dense costs less in all. With `OcpSettings` 12 km of work and 150 m per
+corner (Ardennes 6 windows of 9-12 km, Shanghai 10 of 5-12 km), each window cold from
+the 1D plan (from the default guess among dense corners,
+`OcpSettings.window_arc_guess_corners_per_km`), no coarse mesh first: Ardennes 187 s
+CPU (883 iterations) instead of 373 s (1,468), Shanghai 428 s (2,374) instead of 764 s
+(2,080), Sauerland 318 s instead of 343 s, all converged and verified, finish within
++0.02 %. Shanghai's city windows still take 154-343 iterations each: 91 s CPU per 17 km
+there, above the 60 s of issue 14.
 """
 
 from __future__ import annotations
@@ -38,6 +51,11 @@ from itt_planner.ocp.plan import Plan
 from itt_planner.ocp.solver import PlanStatus, SolveResult
 from itt_planner.ocp.transcription import Layout
 
+#: How far a cut between windows stays from a corner's apex (or halfway between two
+#: apices closer than twice this): a window then starts and ends on a straight, where
+#: the fixed start state and the free end disturb no corner.
+_CORNER_CLEAR_M = 250.0
+
 
 @dataclass(frozen=True)
 class Window:
@@ -49,16 +67,34 @@ class Window:
     last: int
 
 
-def plan_windows(nodes: np.ndarray, window_m: float, overlap_m: float) -> list[Window]:
-    """Windows over `nodes` (module docstring): `ceil(length / window_m)` equal cores,
-    each window its core plus `overlap_m` of the course after it."""
-    length = float(nodes[-1] - nodes[0])
-    n = max(1, math.ceil(length / window_m - 1e-9))
-    cuts = np.searchsorted(nodes, nodes[0] + length * np.arange(n + 1) / n)
-    cuts[-1] = len(nodes) - 1
+def plan_windows(nodes: np.ndarray, window_m: float, overlap_m: float,
+                 corners_s_m: np.ndarray | None = None, corner_m: float = 0.0) -> list[Window]:
+    """Windows over `nodes` (module docstring): cores of equal work, each window its core
+    plus `overlap_m` of the course after it. The work of a stretch is its length plus
+    `corner_m` per corner apex in it (`corners_s_m`), so a window holds about `window_m`
+    of work: a stretch of city corners gets shorter windows than open road. A cut is kept
+    `_CORNER_CLEAR_M` from the nearest apices (halfway between two closer ones)."""
+    apex = np.sort(np.asarray([] if corners_s_m is None else corners_s_m, float))
+    apex = apex[(apex > nodes[0]) & (apex < nodes[-1])]
+    work = (nodes - nodes[0]) + corner_m * np.searchsorted(apex, nodes, side="right")
+    n = max(1, math.ceil(float(work[-1]) / window_m - 1e-9))
+    cut_s = np.interp(work[-1] * np.arange(1, n) / n, work, nodes)
+    if len(apex):  # at least `_CORNER_CLEAR_M` from the apices either side (or halfway)
+        nxt = np.searchsorted(apex, cut_s)
+        prev_s = np.where(nxt > 0, apex[np.clip(nxt - 1, 0, None)], -np.inf)
+        next_s = np.where(nxt < len(apex), apex[np.clip(nxt, None, len(apex) - 1)], np.inf)
+        clear = np.minimum(0.5 * (next_s - prev_s), _CORNER_CLEAR_M)
+        cut_s = np.clip(cut_s, prev_s + clear, next_s - clear)
+    cuts = np.unique(np.concatenate([[0], np.searchsorted(nodes, cut_s), [len(nodes) - 1]]))
     ends = np.searchsorted(nodes, nodes[cuts[1:]] + overlap_m)
     return [Window(int(a), int(b), int(min(e, len(nodes) - 1)))
             for a, b, e in zip(cuts[:-1], cuts[1:], ends, strict=True)]
+
+
+def window_corners_per_km(nodes: np.ndarray, corners_s_m: np.ndarray) -> float:
+    """Corner apices per km of the window spanning `nodes`."""
+    inside = np.count_nonzero((corners_s_m >= nodes[0]) & (corners_s_m <= nodes[-1]))
+    return 1000.0 * inside / max(float(nodes[-1] - nodes[0]), 1.0)
 
 
 def window_start(states: tuple[str, ...], layout: Layout, prev: SolveResult, node: int,

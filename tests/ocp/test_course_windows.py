@@ -5,6 +5,7 @@ module constants) passed small here, so that a 1.2 km course exercises them."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -18,7 +19,7 @@ from itt_planner.model.rider import PRESETS
 from itt_planner.ocp import course_restarts
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.course_settings import OcpSettings
-from itt_planner.ocp.course_windows import plan_windows, stitch
+from itt_planner.ocp.course_windows import plan_windows, stitch, window_corners_per_km
 from itt_planner.ocp.solver import PlanStatus, SolveResult
 from itt_planner.ocp.transcription import Layout
 
@@ -32,6 +33,32 @@ def test_windows_cover_the_course_with_overlaps() -> None:
         assert b.first == a.core_end  # the cores tile the mesh
         assert nodes[a.last] - nodes[a.core_end] >= 120.0 - 4.0  # the overlap
     assert plan_windows(nodes, 5000.0, 120.0)[0].last == len(nodes) - 1  # one window
+
+
+def test_windows_are_shorter_where_the_corners_are() -> None:
+    """A window holds `window_m` of work, a corner counting `corner_m` metres: a 2 km
+    stretch of 20 corners gets the short windows, the open road the long ones, and no
+    cut lands within 250 m of an apex (or off the middle of a shorter gap)."""
+    nodes = np.arange(0.0, 10_000.0 + 1.0, 4.0)
+    apex = np.r_[np.linspace(4_050.0, 5_950.0, 20), 8_000.0]
+    wins = plan_windows(nodes, 2_500.0, 300.0, apex, 150.0)
+    assert len(wins) == 6  # (10 km + 21 x 150 m) / 2.5 km
+    cores = [(nodes[w.first], nodes[w.core_end]) for w in wins]
+    city = [b - a for a, b in cores if 4_000.0 <= 0.5 * (a + b) <= 6_000.0]
+    road = [b - a for a, b in cores if 0.5 * (a + b) < 3_500.0]
+    assert city and road and max(city) < 0.8 * min(road)
+    gaps = np.diff(apex).min()
+    for w in wins[1:]:
+        cut = nodes[w.first]
+        clear = np.abs(apex - cut).min()
+        assert clear >= min(250.0, 0.5 * gaps) - 4.0, (cut, clear)
+    assert wins[0].first == 0 and wins[-1].core_end == len(nodes) - 1
+    for a, b in itertools.pairwise(wins):
+        assert b.first == a.core_end
+    assert window_corners_per_km(nodes[: 1501], apex) == pytest.approx(20 / 6.0)
+    # No corners: the equal cores by length.
+    assert plan_windows(nodes, 2_500.0, 300.0, np.array([]), 150.0) == plan_windows(
+        nodes, 2_500.0, 300.0)
 
 
 def _window_of(layout: Layout, v: np.ndarray, g: np.ndarray, first: int, last: int
@@ -85,6 +112,12 @@ def test_windows_first_reaches_the_cold_plan() -> None:
     assert strategies[1].startswith("window 1/2") and strategies[-1] == "polish from the windows"
     assert np.array_equal(plan.s_m, cold.s_m)
     assert plan.finish_time_s == pytest.approx(cold.finish_time_s, rel=5e-4)
+    # Windows among dense corners start from the default (arc) guess: the same plan.
+    arc = solve_plan(course, rider, model="3d", settings=dataclasses.replace(
+        settings, window_arc_guess_corners_per_km=-1.0))
+    assert arc.meta["success"], arc.meta["attempts"]
+    assert "arc guess" in arc.meta["attempts"][1]["strategy"]
+    assert arc.finish_time_s == pytest.approx(cold.finish_time_s, rel=5e-4)
     # A start mid-course or a given guess never takes the windows.
     warm = solve_plan(course, rider, settings=settings, model="3d", guess=cold)
     assert warm.meta["attempts"][0]["strategy"] == "guess"
