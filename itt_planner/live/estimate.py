@@ -5,9 +5,8 @@ process): wheel speed measures `v`, and each GPS fix, map-matched to the course
 (`map_match`: locally, around the predicted `s`), measures `s`. A fix whose innovation
 fails a chi-square gate (a 100 m jump) or that lies far off the road is rejected and
 counted. After several consecutive rejections the estimator is "lost" and re-acquires
-globally. Without GPS (tunnels, dropouts) the
-filter dead-reckons on wheel speed; its `s` variance grows so the returning fixes are
-accepted and pull it back.
+globally. Without GPS (tunnels, dropouts) the filter dead-reckons on wheel speed; its `s`
+variance grows so the returning fixes are accepted and pull it back.
 
 The published `s` never moves backwards: it follows the filter with a bounded forward
 catch-up and, when the filter falls behind it, slows down instead of jumping back. On a
@@ -84,9 +83,8 @@ class EstimatorSettings:
             edge would make the planner brake for a road edge the rider is not at).
         global_window_m: a local search window wider than this (after a long gap)
             becomes a global search that prefers the predicted `s`.
-        start_reach_m: a first fix (or a re-acquisition before the rider is this far
-            along) within this of the course's first point places the rider at the start,
-            not at a pass of the road elsewhere (`map_match`: a loop's finish).
+        start_reach_m: a first fix (or a re-acquisition before this far along) this near
+            the course's start is at the start, not at a pass elsewhere (a loop's finish).
         wprime_model: E9 variant.
     """
 
@@ -306,8 +304,7 @@ class StateEstimator:
 
     # ---- Kalman filter on (s, v) ----------------------------------------------------------
     def _first_fix(self, fix: GpsFix, x: float, y: float, std: float) -> bool:
-        """The first fix places the rider: at the start if it is within reach of it
-        (`map_match`), else matched on the whole course from its start."""
+        """The first fix places the rider: at the start within reach, else on the course."""
         match = (self._matcher.start_match(x, y, self.settings.start_reach_m)
                  or self._matcher.nearest_pass(x, y, prefer_s=0.0))
         if match is None:
@@ -384,10 +381,9 @@ class StateEstimator:
     def _reacquire(self, x: float, y: float, std: float) -> bool:
         """Lost: several fixes in a row rejected. Match the latest one globally."""
         self.counters["gps_reacquire_attempts"] += 1
-        match = None
-        if self._s_pub < self.settings.start_reach_m:  # not yet away from the start
-            match = self._matcher.start_match(x, y, self.settings.start_reach_m)
-        match = match or self._matcher.nearest_pass(x, y, prefer_s=self._x[0])
+        reach = self.settings.start_reach_m  # not yet away from the start: at the start
+        match = ((self._matcher.start_match(x, y, reach) if self._s_pub < reach else None)
+                 or self._matcher.nearest_pass(x, y, prefer_s=self._x[0]))
         if match is None:
             return self._reject("gps_off_course", "lost, no course point near the fix")
         log.warning("estimator: lost for %d fixes, re-acquired at s=%.0f m (filter had %.0f m)",

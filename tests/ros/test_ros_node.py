@@ -309,6 +309,10 @@ def test_play_node_record_pipeline_agrees_with_the_embedded_replay(
                         "--json"), env, tmp_path / "record.log")
     try:
         node.wait_for("ready on /itt", 120)
+        # The recorder finds the node's publishers on its next discovery poll; advice
+        # published before it subscribed is not recorded (on a loaded machine it
+        # subscribed 2.6 s after the node was ready and missed 2 of 100 advice).
+        recorder.wait_for("record: subscribed to /itt/advice", 60)
         # Rate 2: the node keeps up with every 1 s replan (solves of up to 0.5 s wall).
         player = Proc(cli("play", str(ride.log), "--rate", "2", "--clock",
                           "--wait-for-matched", "20", "--json"), env, tmp_path / "play.log")
@@ -320,8 +324,7 @@ def test_play_node_record_pipeline_agrees_with_the_embedded_replay(
     assert played["refused"] == 0 and played["clock_messages"] > 100
     assert set(played["messages"]) == {"/itt/gps/fix", "/itt/speed", "/itt/power"}
     result = json.loads(node_out)
-    assert result["malformed"] == {}
-    assert json.loads(record_out)["recorded"] > 0
+    assert result["malformed"] == {} and json.loads(record_out)["recorded"] > 0
 
     # Every recorded message decodes with rosbags to the type its channel declares.
     info, msgs = rosbags_messages(tmp_path / "out.mcap")
