@@ -168,6 +168,7 @@ def main() -> None:
             "by_model": {k.removeprefix("course_replans_model_"): v
                          for k, v in counts.items() if k.startswith("course_replans_model_")},
             "line_refused": counts.get("course_replans_line_refused", 0),
+            "line_after_3d_failed": counts.get("course_replans_line_after_3d_failed", 0),
             "adopted_plans": engine.plans.adopted,
             "failed_by_status": {k.removeprefix("course_replan_failed_"): v
                                  for k, v in counts.items()

@@ -51,7 +51,6 @@ import numpy as np
 from itt_planner.course.geometry import Course
 from itt_planner.errors import SolveError
 from itt_planner.live.resolve_model import (
-    RESOLVE_1D_LINE,
     RESOLVE_3D,
     RESOLVE_AUTO,
     RESOLVE_MODELS,
@@ -244,7 +243,7 @@ class CourseReplanner:
         if st.model != RESOLVE_3D and (self._line_source is None or not on_line(guess)):
             self._line_source = guess
         model = chosen_model(st.model, self.course.length_m - start.s_m, st.auto_3d_max_m)
-        if model == RESOLVE_1D_LINE and self._line_source is not None:
+        if st.model != RESOLVE_3D and self._line_source is not None:  # also the fall-back
             src = self._line_source
             line_n = np.interp(self.course.s_m, src.s_m, src.n_m)
         job = (model, self.course, rider, self.conditions, st.ocp, guess, start, warm, line_n)

@@ -18,8 +18,8 @@ point of the plan in force when there is one (for the first plan, the point it w
 or cached with: `course_replan.plan_point`); the counters say which way each started
 (`course_replans_started_warm` / `_cold`) and how many warm runs converged at once
 (`course_replans_warm_converged`; the others went on to the restarts), and which model
-each solved (`course_replans_model_3d` / `_1d-line`, `course_replans_line_refused`:
-`resolve_model`).
+each solved (`course_replans_model_3d` / `_1d-line`, `course_replans_line_refused`,
+`course_replans_line_after_3d_failed`: `resolve_model`).
 
 Not thread-safe: the engine calls it with its locks held.
 """
@@ -135,6 +135,10 @@ class PlanInForce:
         # of the plan in force; and why the 1D was refused when it was asked for.
         resolved = plan.meta.get("resolve", {})
         self._stats[f"course_replans_model_{resolved.get('model', 'unknown')}"] += 1
+        if resolved.get("after_3d_failed"):
+            self._stats["course_replans_line_after_3d_failed"] += 1
+            log.warning("engine: the re-solve from s=%.0f m is 1D on the line: %s",
+                        plan.s_m[0], resolved["after_3d_failed"])
         if resolved.get("line_refused"):
             self._stats["course_replans_line_refused"] += 1
             log.info("engine: the re-solve from s=%.0f m is 3D: %s", plan.s_m[0],

@@ -31,7 +31,12 @@ corners (the lean a state, not steady) are worth its cost; before, the 1D on the
 is within 0.5 % (median) and a third of the CPU. The St John's replay with `auto`
 (bench/RESULTS.md, 2026-12-02, lead): 45 re-solves asked, 45 adopted (29 on the line,
 16 in 3D), 0 failed, against 1 failed of 48 with the 3D alone; the wait for them 183 s
-against 1,502 s of wall, at the same load.
+against 1,502 s of wall, at the same load. Under `RESOLVE_AUTO` a 3D re-solve that fails
+(not converged, or its plan not verified) falls back to the 1D on the line, with the same
+guard (`meta["resolve"]["after_3d_failed"]` says so, and the engine counts it): on the
+Ardennes ride (57.4 km, calibrated rider) 2 of the 21 3D re-solves within 20 km of the
+finish failed (`Invalid_Plan` at 41.1 km, the 60 s cap at 43.7 km) and left the rider
+on an older plan.
 """
 
 from __future__ import annotations
@@ -97,22 +102,45 @@ def solve_rest(model: str, course: Course, rider: Rider, conditions: Conditions,
     """The rest of `course` from `start` with `model` (module docstring): the plan (its
     `meta["resolve"]`) and, if it converged, its primal-dual point. `warm`: the point of
     `guess` (a 1D point if `guess` is `on_line`, else a 3D one); `line_n`: the line's
-    offset on the road's grid (`RESOLVE_1D_LINE`); `free_3d`: the states a 3D re-solve
-    leaves to the solver (`course_replan.free_states`)."""
+    offset on the road's grid, for `RESOLVE_1D_LINE`, and with `RESOLVE_3D` the line a
+    failed 3D re-solve falls back to (`RESOLVE_AUTO`; None: no fall-back); `free_3d`: the
+    states a 3D re-solve leaves to the solver (`course_replan.free_states`)."""
     refused = ""
     if model == RESOLVE_1D_LINE and line_n is not None:
-        line = lines.get(course, line_n)
-        plan, point = solve_rest_on_line(line, rider, conditions, settings, guess=guess,
-                                         start=start, warm=warm if on_line(guess) else None)
-        plan, refused = line_corners(plan, line, rider, conditions)
-        if plan.converged and not refused:
-            plan.meta["resolve"] = {"model": RESOLVE_1D_LINE, "line": line.course.name}
+        plan, point, refused = _on_line(course, rider, conditions, settings, guess, start,
+                                        warm, line_n, lines)
+        if not refused:
             return plan, point
-        refused = refused or f"the 1D plan on the line is {plan.status}"
         log.info("course re-solve from s=%.0f m: the 1D plan on the line refused (%s); "
                  "solving the 3D", start.s_m, refused)
     plan, point = solve_plan_point(course, rider, conditions, settings, model="3d",
                                    guess=guess, start=start, free_start=free_3d,
                                    warm=None if on_line(guess) else warm)
     plan.meta["resolve"] = {"model": RESOLVE_3D, "line_refused": refused}
-    return plan, point
+    if plan.meta.get("success") or model != RESOLVE_3D or line_n is None:
+        return plan, point
+    # A failed 3D re-solve (module docstring: `RESOLVE_AUTO`): the line's plan, if rideable.
+    failed = f"the 3D re-solve ended {plan.solver_status}"
+    line_plan, line_point, refused = _on_line(course, rider, conditions, settings, guess,
+                                              start, warm, line_n, lines)
+    if refused:
+        log.info("course re-solve from s=%.0f m: %s and the 1D plan on the line was refused "
+                 "(%s)", start.s_m, failed, refused)
+        return plan, point
+    line_plan.meta["resolve"]["after_3d_failed"] = failed
+    return line_plan, line_point
+
+
+def _on_line(course: Course, rider: Rider, conditions: Conditions, settings: OcpSettings,
+             guess: Plan, start: Start, warm: PrimalDual | None, line_n: np.ndarray,
+             lines: LineCache) -> tuple[Plan, PrimalDual | None, str]:
+    """The 1D plan on the line `line_n` and why it is refused ("" if it is rideable and
+    converged: then its `meta["resolve"]` says so)."""
+    line = lines.get(course, line_n)
+    plan, point = solve_rest_on_line(line, rider, conditions, settings, guess=guess,
+                                     start=start, warm=warm if on_line(guess) else None)
+    plan, refused = line_corners(plan, line, rider, conditions)
+    if plan.converged and not refused:
+        plan.meta["resolve"] = {"model": RESOLVE_1D_LINE, "line": line.course.name}
+        return plan, point, ""
+    return plan, point, refused or f"the 1D plan on the line is {plan.status}"

@@ -49,13 +49,15 @@ class Budget:
 
     def run(self, strategy: str, pr: CourseNlp, w0: np.ndarray, share: float = 1.0,
             bound_push: float = BOUND_PUSH, acceptable_tol: float | None = None,
-            resume: SolveResult | None = None, never_monotone: bool = False) -> SolveResult:
-        """One solver run from `w0` with `share` of what is left of the budget; `resume`:
-        a previous run on `pr` to continue from its primal-dual point (its multipliers
-        too) instead of a fresh start."""
+            resume: SolveResult | None = None, never_monotone: bool = False,
+            max_iter: int | None = None) -> SolveResult:
+        """One solver run from `w0` with `share` of what is left of the budget, and at
+        most `max_iter` iterations if given; `resume`: a previous run on `pr` to continue
+        from its primal-dual point (its multipliers too) instead of a fresh start."""
         its, secs = self.left()
+        its = int(its * share) if max_iter is None else min(int(its * share), max_iter)
         t0, c0 = time.perf_counter(), time.process_time()
-        solver = full_course_solver(pr.tr, max_iter=int(its * share),
+        solver = full_course_solver(pr.tr, max_iter=its,
                                     max_cpu_time_s=secs * share, tol=self.tol,
                                     bound_push=bound_push, acceptable_tol=acceptable_tol,
                                     resume=resume is not None,

@@ -26,7 +26,8 @@ start may use `_FIRST_SHARE` of it):
   first: on Ardennes that failed in 2 of 4 windows of 15 km, and a window's own run
   costs less than a coarse and a fine one, bench/RESULTS.md, 2026-12-02, H3), then a
   run on the full mesh resumed from their stitched primal-dual point (`course_windows`,
-  why there). A window that gives up early is restarted with the smaller bound push
+  why there). A window that gives up early, or is still running at
+  `OcpSettings.window_max_iter` iterations, is restarted with the smaller bound push
   below. If the 1D plan or a window does not converge, the coarse mesh first or the
   cold start as without;
 - early failure (`solver.SolveResult.gave_up_early`): the same start with a smaller
@@ -258,8 +259,9 @@ class CourseSolve:
                      f"{', arc guess' if dense else ''})")
             # Each window gets an equal share of what is left, one share kept for the polish.
             share = 1.0 / (len(wins) - k + 1)
-            res = run(label, win_nlp, win_nlp.w_guess, share=share)
-            if res.gave_up_early and usable():
+            res = run(label, win_nlp, win_nlp.w_guess, share=share, max_iter=st.window_max_iter)
+            at_cap = res.iterations >= st.window_max_iter  # wandering (`window_max_iter`)
+            if (res.gave_up_early or at_cap) and usable():
                 res = run(f"{label}, smaller bound push", win_nlp, win_nlp.w_guess,
                           bound_push=_RETRY_BOUND_PUSH, share=share)
             if res.status is PlanStatus.CAPPED and usable():

@@ -56,6 +56,11 @@ class OcpSettings:
             iterations from it, 468, 511, 173 and 334 from the 1D plan; on open road the
             1D plan was better (Ardennes 39-50 km, 2.0 per km, from the 1D plan's state:
             155 against 192).
+        window_max_iter: a window's first run stops here and starts again with the
+            smaller bound push, as after an early failure: converging windows took 79-343
+            iterations (bench/RESULTS.md, 2026-12-02, helper H3), while the Ardennes ride's
+            last window with the calibrated rider wandered for 1,063 iterations (282 s) to
+            `Restoration_Failed` and then converged in 124 with the smaller push.
     """
 
     h_min_m: float = 1.0
@@ -81,6 +86,7 @@ class OcpSettings:
     window_overlap_m: float = 2_000.0
     window_corner_m: float = 150.0
     window_arc_guess_corners_per_km: float = 4.0
+    window_max_iter: int = 600
 
     def budget(self, model: str, length_m: float) -> tuple[int, float]:
         """(iterations, seconds) for one solve of `length_m` metres with `model`.

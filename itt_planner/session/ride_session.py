@@ -246,7 +246,9 @@ class RideSession:
                        "course were 1D on the line of the plan in force, "
                        f"{models.get('course_replans_model_3d', 0)} 3D "
                        f"({models.get('course_replans_line_refused', 0)} where the 1D was "
-                       "refused: a corner ahead needs the 3D)")
+                       "refused: a corner ahead needs the 3D; "
+                       f"{models.get('course_replans_line_after_3d_failed', 0)} on the line "
+                       "after the 3D failed)")
         held = counts.course_replans_backed_off + counts.course_replans_skipped_stopped
         if held:  # `live.resolve_gate`
             out.append(f"{held} re-solves of the rest of the course were held "

@@ -123,6 +123,20 @@ def test_windows_first_reaches_the_cold_plan() -> None:
     assert warm.meta["attempts"][0]["strategy"] == "guess"
 
 
+def test_a_window_at_its_iteration_cap_starts_again_with_the_smaller_bound_push() -> None:
+    course, rider = build_course(SHORT), PRESETS["paper"]
+    settings = OcpSettings(window_min_m=0.0, window_m=700.0, window_overlap_m=300.0,
+                           window_max_iter=5)
+    plan = solve_plan(course, rider, settings=settings, model="3d")
+    attempts = plan.meta["attempts"]
+    first, retry = attempts[1], attempts[2]
+    assert first["strategy"].startswith("window 1/2") and first["iterations"] == 5
+    assert first["outcome"] == PlanStatus.CAPPED
+    assert retry["strategy"] == first["strategy"] + ", smaller bound push"
+    assert retry["iterations"] > 5  # the retry is not held to the cap
+    assert plan.meta["success"], attempts
+
+
 def test_a_capped_1d_run_restarts_with_the_never_monotone_barrier(
         monkeypatch: pytest.MonkeyPatch) -> None:
     course, rider = build_course(SHORT), PRESETS["paper"]
