@@ -68,8 +68,9 @@ def replay_cli(
     resolve_model: str = typer.Option(
         "auto", "--course-resolve-model",
         help="What a re-solve of the rest of the course solves: auto (3d within 20 km of "
-             "the finish, 1d-line before), 3d, or 1d-line (the 1D that knows the corners "
-             "of the plan's line; the 3D where its plan is refused)."),
+             "the finish, 1d-line before or where the 3d fails), 3d, or 1d-line (the 1D "
+             "that knows the corners of the plan's line; the 3D where its plan is "
+             "refused)."),
     cache_dir: Path = typer.Option(Path(".itt_cache"), "--cache-dir",
                                    help="Where full-course plans are cached."),
     live_timing: bool = typer.Option(

@@ -91,8 +91,8 @@ class CourseReplanSettings:
         model: what a re-solve solves: `RESOLVE_3D` (the 3D OCP of the rest of the
             road), `RESOLVE_1D_LINE` (the 1D OCP that knows the corners on the line of
             the last 3D plan in force, the 3D if its plan is refused) or `RESOLVE_AUTO`
-            (the 3D within `auto_3d_max_m` of the finish, the 1D on the line before:
-            `resolve_model`).
+            (the 3D within `auto_3d_max_m` of the finish, the 1D on the line before
+            and where the 3D fails: `resolve_model`).
         auto_3d_max_m: under `RESOLVE_AUTO`, a rest of the course at most this long is
             re-solved in 3D (its CPU grows with the rest; the cap above is 60 s).
     """

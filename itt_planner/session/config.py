@@ -42,7 +42,8 @@ class SessionConfig:
         course_replan_period_s: off the plan, the rest of the course is re-solved at most
             this often (`CourseReplanSettings`); 0.0 never.
         course_resolve_model: what such a re-solve solves (`CourseReplanSettings.model`):
-            "auto" (the 3D within 20 km of the finish, the 1D on the plan's line before),
+            "auto" (the 3D within 20 km of the finish, the 1D on the plan's line before
+            and where the 3D fails),
             "3d", or "1d-line" (the 1D that knows the corners of the plan's line; the 3D
             where its plan is refused): `live.resolve_model`.
         line_gate_m: the horizon plans from the advised line unless GPS puts the rider
