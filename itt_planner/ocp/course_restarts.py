@@ -28,8 +28,9 @@ start may use `_FIRST_SHARE` of it):
   run on the full mesh resumed from their stitched primal-dual point (`course_windows`,
   why there). A window that gives up early, or is still running at
   `OcpSettings.window_max_iter` iterations, is restarted with the smaller bound push
-  below. If the 1D plan or a window does not converge, the coarse mesh first or the
-  cold start as without;
+  below; one that still fails, from the other guess (the arc guess or the 1D plan). If
+  the 1D plan or a window does not converge, the coarse mesh first or the cold start as
+  without;
 - early failure (`solver.SolveResult.gave_up_early`): the same start with a smaller
   bound push (on short courses the 3D model ended in Restoration_Failed with IPOPT's
   default push and converged in 39-64 iterations with 1e-4);
@@ -254,23 +255,38 @@ class CourseSolve:
             # Among dense corners the default (arc) guess, elsewhere the 1D plan (module
             # docstring: the 1D plan's corner speeds do not match the guess's lean there).
             dense = (window_corners_per_km(nodes, apex) > st.window_arc_guess_corners_per_km)
-            win_nlp = self._window_nlp(None if dense else base, reserve, start, nodes)
-            label = (f"window {k + 1}/{len(wins)} ({nodes[0] / 1e3:.1f}-{nodes[-1] / 1e3:.1f} km"
-                     f"{', arc guess' if dense else ''})")
+            label = f"window {k + 1}/{len(wins)} ({nodes[0] / 1e3:.1f}-{nodes[-1] / 1e3:.1f} km"
             # Each window gets an equal share of what is left, one share kept for the polish.
             share = 1.0 / (len(wins) - k + 1)
-            res = run(label, win_nlp, win_nlp.w_guess, share=share, max_iter=st.window_max_iter)
-            at_cap = res.iterations >= st.window_max_iter  # wandering (`window_max_iter`)
-            if (res.gave_up_early or at_cap) and usable():
-                res = run(f"{label}, smaller bound push", win_nlp, win_nlp.w_guess,
-                          bound_push=_RETRY_BOUND_PUSH, share=share)
-            if res.status is PlanStatus.CAPPED and usable():
-                res = run(f"{label}, resumed", win_nlp, res.w, share=0.5, resume=res)
+            win_nlp, res = self._solve_window(label, base, dense, reserve, start, nodes, share)
             if not res.converged:
                 return None
             runs.append(res)
         point = stitch(prob.tr.layout, wins, runs)
         return run("polish from the windows", prob, point.w, share=_FIRST_SHARE, resume=point)
+
+    def _solve_window(self, label: str, base: Plan, dense: bool, reserve: float,
+                      start: Start | None, nodes: np.ndarray, share: float
+                      ) -> tuple[CourseNlp, SolveResult]:
+        """One window's runs (`_window_nlp`), `share` of the budget left each: from the
+        arc guess if `dense`, else from the 1D plan `base`; after an early failure or at
+        `OcpSettings.window_max_iter` again with the smaller bound push; capped, resumed;
+        still not converged, all that once more from the other guess (the Sauerland ride's
+        window at 77-89 km, calibrated rider, ended Restoration_Failed from the 1D plan
+        with both bound pushes)."""
+        st, run, usable = self.settings, self.budget.run, self.budget.usable
+        for arc in (dense, not dense):
+            nlp = self._window_nlp(None if arc else base, reserve, start, nodes)
+            name = f"{label}{', arc guess' if arc else ''})"
+            res = run(name, nlp, nlp.w_guess, share=share, max_iter=st.window_max_iter)
+            if (res.gave_up_early or res.iterations >= st.window_max_iter) and usable():
+                res = run(f"{name}, smaller bound push", nlp, nlp.w_guess,
+                          bound_push=_RETRY_BOUND_PUSH, share=share)
+            if res.status is PlanStatus.CAPPED and usable():
+                res = run(f"{name}, resumed", nlp, res.w, share=0.5, resume=res)
+            if res.converged or not usable():
+                break
+        return nlp, res
 
     def _from_coarse(self, prob: CourseNlp) -> SolveResult | None:
         """Solve on every other node of `prob`'s mesh (and its last) from the default

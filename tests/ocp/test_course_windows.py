@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+from typing import Any
 
 import numpy as np
 import pytest
@@ -17,6 +18,7 @@ from itt_planner.course.builder import build_course
 from itt_planner.course.loader import load_course
 from itt_planner.model.rider import PRESETS
 from itt_planner.ocp import course_restarts
+from itt_planner.ocp.course_budget import Budget
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.ocp.course_windows import plan_windows, stitch, window_corners_per_km
@@ -135,6 +137,28 @@ def test_a_window_at_its_iteration_cap_starts_again_with_the_smaller_bound_push(
     assert retry["strategy"] == first["strategy"] + ", smaller bound push"
     assert retry["iterations"] > 5  # the retry is not held to the cap
     assert plan.meta["success"], attempts
+
+
+def test_a_window_that_fails_from_the_1d_plan_goes_on_from_the_arc_guess(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    course, rider = build_course(SHORT), PRESETS["paper"]
+    settings = OcpSettings(window_min_m=0.0, window_m=700.0, window_overlap_m=300.0,
+                           window_arc_guess_corners_per_km=1e9)  # every window from the 1D
+    real_run = Budget.run
+
+    def run(self: Budget, strategy: str, *args: Any, **kwargs: Any) -> Any:
+        if strategy.startswith("window 1/2") and "arc guess" not in strategy:
+            kwargs["max_iter"] = 2  # every run of the first window from the 1D plan fails
+        return real_run(self, strategy, *args, **kwargs)
+
+    monkeypatch.setattr(Budget, "run", run)
+    plan = solve_plan(course, rider, settings=settings, model="3d")
+    first = [a for a in plan.meta["attempts"] if a["strategy"].startswith("window 1/2")]
+    assert [a["outcome"] for a in first[:-1]] == [PlanStatus.CAPPED] * (len(first) - 1)
+    assert first[-1]["strategy"].endswith(", arc guess)")
+    assert first[-1]["outcome"] == PlanStatus.CONVERGED
+    assert plan.meta["attempts"][-1]["strategy"] == "polish from the windows"
+    assert plan.meta["success"], plan.meta["attempts"]
 
 
 def test_a_capped_1d_run_restarts_with_the_never_monotone_barrier(
