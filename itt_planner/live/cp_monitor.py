@@ -26,7 +26,14 @@ CP is wrong the balance drifts, and what the rider does reveals it, in two ways:
   has gone below `-up_margin` x W' (so power-meter noise around an empty balance does
   not refit every second). The published balance is clipped at 0 meanwhile. The new CP
   is the lowest whose balance over the whole power history never goes below
-  `up_margin` x W' (that headroom again, so that the next refit needs new evidence).
+  `up_margin` x W' (that headroom again, so that the next refit needs new evidence),
+  but never above what the power held proves (`WPrimeBalance.proven_critical_power`:
+  the best MMP(T) - W'/T over `up_durations_s`). Why: the balance goes below zero after
+  a sprint too (W' or its recovery misjudged, not CP); on the Sauerland ride (CP 240 W
+  calibrated) 1 s of 1,244 W and 1 s of 1,112 W at 78.8 km raised CP 291 -> 313 -> 343 W
+  within 4 s, and on St John's 9 refits in 2.3 km made a staircase. When the power held
+  proves no higher CP, the rider is `holding`: counted once per episode (`up_held`),
+  logged, and in the diagnostic; the balance stays clipped at 0 until it recovers.
 
 Down, the new CP is the one at which the lowest balance over the whole power history is
 0 (`WPrimeBalance.fit_critical_power`): the highest CP whose balance empties. W' itself is kept (a
@@ -66,7 +73,9 @@ class CpMonitorSettings:
         follow_ratio: ... delivering at least this fraction of the mean advised power,
             itself above CP (a rider lags the target by ~1 s and wanders a few %).
         up_margin: the balance at the CP in use this fraction of W' below zero raises CP
-            (to the CP whose lowest balance is this fraction of W' above zero).
+            (to the CP whose lowest balance is this fraction of W' above zero) ...
+        up_durations_s: ... at most to what the power held over one of these durations
+            proves (module docstring).
         min_change: a refit changing CP by less than this fraction is none (what a fit
             from 20 s of evidence can tell).
         up_factor, down_factor: the refitted CP is searched in [CP, up_factor CP] and
@@ -82,6 +91,9 @@ class CpMonitorSettings:
     follow_window_s: float = 60.0
     follow_ratio: float = 0.90
     up_margin: float = 0.05
+    # 10 s to 1 h, 5 % apart (a proof at a coarser step lags the balance's crossing).
+    up_durations_s: tuple[float, ...] = tuple(sorted({float(round(10 * 1.05 ** k))
+                                                      for k in range(122)}))
     min_change: float = 0.01
     up_factor: float = 1.5
     down_factor: float = 0.5
@@ -95,7 +107,9 @@ class Refit:
         direction: "down" (out of W' the balance still showed) or "up" (more done than
             the belief allows).
         power_held_w, target_w, duration_s: the mean measured and advised power over
-            the evidence window and its length.
+            the evidence window and its length ("up": the best mean power over the
+            duration that proves the new CP, `proven_critical_power`, and the mean
+            advised power of the last window).
         w_prime_j: the balance at the old CP at that moment (below zero for "up").
     """
 
@@ -115,7 +129,7 @@ class Refit:
                    f"advised for {self.duration_s:.0f} s after following the advice, with "
                    f"{self.w_prime_j / 1000:.1f} kJ of W' left at the old CP: out of W'")
         else:
-            why = (f"rider averaged {self.power_held_w:.0f} W over {self.duration_s:.0f} s "
+            why = (f"rider held {self.power_held_w:.0f} W over {self.duration_s:.0f} s "
                    f"and the balance at the old CP reached {self.w_prime_j / 1000:.1f} kJ: "
                    "more than the belief allows")
         return (f"CP refitted {self.direction} {self.cp_before_w:.0f} -> {self.cp_after_w:.0f} W "
@@ -147,6 +161,10 @@ class CpMonitor:
         self.balance = balance
         self.settings = settings
         self.refits: list[Refit] = []
+        #: The balance is below the up margin but the power held proves no higher CP.
+        self.holding = False
+        #: Such episodes so far.
+        self.up_held = 0
         #: (stamp, advised power, measured power) at every advice.
         self._rows: deque[tuple[float, float, float]] = deque()
 
@@ -170,15 +188,25 @@ class CpMonitor:
         cp = self.cp_in_use_w
         w_raw = self.balance.raw_j(stamp_s)
         if w_raw >= -st.up_margin * self.rider.w_prime_j:
+            self.holding = False
             return None
-        new_cp = self.balance.fit_critical_power(cp, st.up_factor * cp,
-                                                   st.up_margin * self.rider.w_prime_j)
-        if new_cp <= cp:
+        proven, over_s, held_w = self.balance.proven_critical_power(st.up_durations_s)
+        if proven < cp * (1 + st.min_change):  # before the bisection: it replays the ride
+            if not self.holding:
+                self.up_held += 1
+                log.warning("cp_monitor: the balance at CP %.0f W reached %.1f kJ at %.2f km, "
+                            "but the power held proves no higher CP (at best %.0f W over "
+                            "%.0f s: %.0f W): W' shown as 0, CP kept", cp, w_raw / 1000,
+                            state.s_m / 1000, held_w, over_s, proven)
+            self.holding = True
             return None
+        self.holding = False
+        new_cp = min(self.balance.fit_critical_power(cp, st.up_factor * cp,
+                                                       st.up_margin * self.rider.w_prime_j),
+                     proven)
         span = np.array(list(self._rows))
-        return self._adopt(Refit(stamp_s, state.s_m, "up", cp, new_cp,
-                                 float(span[:, 2].mean()), float(span[:, 1].mean()),
-                                 float(span[-1, 0] - span[0, 0]), w_raw))
+        return self._adopt(Refit(stamp_s, state.s_m, "up", cp, new_cp, held_w,
+                                 float(span[:, 1].mean()), over_s, w_raw))
 
     def _check_down(self, stamp_s: float, state: RiderState) -> Refit | None:
         st = self.settings
@@ -222,11 +250,16 @@ class CpMonitor:
 
     def diagnostic(self, stamp_s: float) -> Diagnostic:
         """`itt_planner/rider_model`: the CP in use, the refits so far and the last one's
-        evidence (WARN once there was a refit)."""
+        evidence (WARN once there was a refit, or while `holding`)."""
         values = {"cp_believed_w": f"{self.rider.critical_power_w:.1f}",
                   "cp_in_use_w": f"{self.cp_in_use_w:.1f}", "refits": str(len(self.refits)),
                   "refits_up": str(sum(r.direction == "up" for r in self.refits)),
-                  "refits_down": str(sum(r.direction == "down" for r in self.refits))}
+                  "refits_down": str(sum(r.direction == "down" for r in self.refits)),
+                  "up_held": str(self.up_held)}
+        if self.holding:
+            return Diagnostic(stamp_s, "itt_planner/rider_model", Level.WARN,
+                              f"W' shown as 0: the balance at CP {self.cp_in_use_w:.0f} W is "
+                              "below zero, but the power held proves no higher CP", values)
         if not self.refits:
             return Diagnostic(stamp_s, "itt_planner/rider_model", Level.OK,
                               "CP as believed: no refit", values)

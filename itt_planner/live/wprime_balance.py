@@ -94,6 +94,32 @@ class WPrimeBalance:
             lo, hi = (mid, hi) if self._history_balance(mid)[0] < target else (lo, mid)
         return hi
 
+    def proven_critical_power(self, durations_s: tuple[float, ...]
+                              ) -> tuple[float, float, float]:
+        """The least CP the power history proves with W' as believed: the highest
+        MMP(T) - W'/T (the 2-parameter model, P(T) = CP + W'/T, which over-predicts what
+        a rider holds below ~2 min, so a short T only proves less) over the durations
+        `durations_s` the history spans, with that T and MMP(T): (CP, T, MMP), or
+        (0, 0, 0) when it spans none. Power is held as in the balance."""
+        if len(self._power_log) < 2:
+            return 0.0, 0.0, 0.0
+        stamps = np.array([s for s, _ in self._power_log])
+        powers = np.array([p for _, p in self._power_log])
+        held = np.minimum(np.diff(stamps), self.power_hold_s)
+        # Energy is piecewise linear: each reading's power for its hold, then nothing.
+        energy = np.concatenate([[0.0], np.cumsum(powers[:-1] * held)])
+        knots_t = np.column_stack([stamps[:-1], stamps[:-1] + held]).ravel()
+        knots_e = np.column_stack([energy[:-1], energy[1:]]).ravel()
+        grid = np.arange(stamps[0], stamps[-1] + 1e-9, 1.0)
+        e = np.interp(grid, knots_t, knots_e)
+        best = (0.0, 0.0, 0.0)
+        for d in durations_s:
+            k = int(d)
+            if k < len(e):
+                mmp = float(np.max(e[k:] - e[:-k])) / k
+                best = max(best, (mmp - self.w_prime_j / k, float(k), mmp))
+        return best
+
     def use_critical_power(self, cp_w: float) -> None:
         """Carry on with critical power `cp_w`: the balance now is that of the whole
         power history replayed with it."""

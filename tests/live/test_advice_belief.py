@@ -195,7 +195,8 @@ def test_shaped_target_is_never_negative_and_rate_limited_except_at_cues(
 def test_w_prime_shown_is_never_below_zero_without_a_refit(blocks: list[tuple[float, int]]) -> None:
     """Any power history (blocks of constant power, 0-2 CP): the published balance is
     >= 0, and after every observation the balance as integrated is no further below zero
-    than the up margin unless a refit was made at that very observation."""
+    than the up margin unless a refit was made at that very observation, or the power
+    held proves no higher CP (`CpMonitor.holding`, reported)."""
     balance = WPrimeBalance(RIDER, EstimatorSettings().power_hold_s)
     est = StateEstimator(CLIMB_COURSE, balance)
     lat, lon, alt = (float(a) for a in CLIMB_COURSE.to_geodetic(*CLIMB_COURSE.enu_at(0.0, 0.0)))
@@ -211,7 +212,10 @@ def test_w_prime_shown_is_never_below_zero_without_a_refit(blocks: list[tuple[fl
             assert state is not None and state.w_prime_j >= 0.0
             refit = monitor.observe(float(t), state, target_w=power)
             raw = balance.raw_j(float(t))
-            assert raw >= -margin - 1e-6 or refit is not None
+            assert raw >= -margin - 1e-6 or refit is not None or monitor.holding
+            if refit is not None:  # never above what the power held proves
+                proven = balance.proven_critical_power(monitor.settings.up_durations_s)[0]
+                assert refit.cp_after_w <= proven + 1e-6
             if refit is not None:
                 assert refit.direction == "up" and refit.cp_after_w > refit.cp_before_w
     # The CP only moved with a refit on record.
