@@ -318,6 +318,7 @@ class PacingEngine:
         Called with `self._lock` held. Returns whether CP was refitted."""
         assert self._last_target_w is not None
         refit = self._cp.observe(stamp_s, state, self._last_target_w)
+        self._stats["cp_up_held"] = self._cp.up_held  # below zero, no higher CP proven
         if refit is None:
             return False
         self._stats["cp_refits"] += 1

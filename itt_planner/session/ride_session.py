@@ -256,6 +256,9 @@ class RideSession:
                        f"{counts.course_replans_backed_off} backed off (the rider left the new "
                        f"plans soon after adoption), {counts.course_replans_skipped_stopped} "
                        "while the rider was stopped")
+        if models.get("cp_up_held", 0):  # `live.cp_monitor`: holding
+            out.append(f"{models['cp_up_held']} time(s) the W' balance went below zero "
+                       "while the power held proved no higher CP: W' shown as 0, CP kept")
         refits = counts.refits_up + counts.refits_down
         if refits:
             out.append(f"critical power refitted {refits} time(s) ({counts.refits_down} down, "

@@ -220,3 +220,32 @@ def test_w_prime_shown_is_never_below_zero_without_a_refit(blocks: list[tuple[fl
                 assert refit.direction == "up" and refit.cp_after_w > refit.cp_before_w
     # The CP only moved with a refit on record.
     assert (balance.cp_w == RIDER.critical_power_w) == (monitor.refits == [])
+
+
+def test_a_surge_on_a_slowly_recovered_balance_is_held_not_refitted() -> None:
+    """0.9 W' spent in 2 min, 10 min at 0.98 CP (the balance recovers slowly, E9), then
+    0.4 W' in a 30 s surge: the balance goes below zero, but no duration's power proves
+    a higher CP (MMP(T) - W'/T; the Sauerland ride's case): no refit, the rider is
+    'holding', counted once and reported."""
+    balance = WPrimeBalance(RIDER, EstimatorSettings().power_hold_s)
+    est = StateEstimator(CLIMB_COURSE, balance)
+    lat, lon, alt = (float(a) for a in CLIMB_COURSE.to_geodetic(*CLIMB_COURSE.enu_at(0.0, 0.0)))
+    est.on_gps(GpsFix(0.0, lat, lon, alt))
+    monitor = CpMonitor(RIDER, balance)
+    cp, w_prime = RIDER.critical_power_w, RIDER.w_prime_j
+    held_at = []
+    for t in range(1, 751):
+        power = (cp + 0.9 * w_prime / 120 if t <= 120 else 0.98 * cp if t <= 720
+                 else cp + 0.4 * w_prime / 30)
+        est.on_power(PowerReading(float(t), power))
+        state = est.state(float(t))
+        assert state is not None and state.w_prime_j >= 0.0
+        assert monitor.observe(float(t), state, target_w=cp) is None
+        if monitor.holding:
+            held_at.append(t)
+    assert balance.raw_j(750.0) < -monitor.settings.up_margin * w_prime
+    assert balance.proven_critical_power(monitor.settings.up_durations_s)[0] < cp
+    assert held_at and held_at[-1] == 750 and monitor.up_held == 1
+    assert monitor.refits == [] and balance.cp_w == cp
+    diag = monitor.diagnostic(750.0)
+    assert diag.values["up_held"] == "1" and "proves no higher CP" in diag.message
