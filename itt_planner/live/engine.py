@@ -312,10 +312,9 @@ class PacingEngine:
 
     def _refit(self, stamp_s: float, state: RiderState) -> bool:
         """Let the CP monitor judge the last target against the power delivered
-        (`cp_monitor`); after a refit the planner is rebuilt with the new CP
-        (`_replace_planner`) and the plan, solved for another CP, is no longer followed
-        (`PlanInForce.follows`) until the rest of the course is re-solved with it.
-        Called with `self._lock` held. Returns whether CP was refitted."""
+        (`cp_monitor`); after a refit the planner is rebuilt (`_replace_planner`) and the
+        plan, solved for another CP, is no longer followed (`PlanInForce.follows`) until
+        the rest is re-solved with it. With `self._lock` held. Returns whether CP moved."""
         assert self._last_target_w is not None
         refit = self._cp.observe(stamp_s, state, self._last_target_w)
         self._stats["cp_up_held"] = self._cp.up_held  # below zero, no higher CP proven
