@@ -123,9 +123,8 @@ def solve_rest(model: str, course: Course, rider: Rider, conditions: Conditions,
     failed = f"the 3D re-solve ended {plan.solver_status}"
     line_plan, line_point, refused = _on_line(course, rider, conditions, settings, guess,
                                               start, warm, line_n, lines)
-    if refused:
-        log.info("course re-solve from s=%.0f m: %s and the 1D plan on the line was refused "
-                 "(%s)", start.s_m, failed, refused)
+    if refused:  # the engine logs and counts it with the failure
+        plan.meta["resolve"]["line_refused"] = f"{failed}; the line's: {refused}"
         return plan, point
     line_plan.meta["resolve"]["after_3d_failed"] = failed
     return line_plan, line_point

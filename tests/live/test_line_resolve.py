@@ -141,6 +141,12 @@ def test_a_failed_3d_resolve_falls_back_to_the_line(plan: Plan,
     assert rest.meta["resolve"] == {
         "model": RESOLVE_1D_LINE, "line": rest.meta["resolve"]["line"],
         "after_3d_failed": "the 3D re-solve ended Maximum_CpuTime_Exceeded"}
+    # The line refused too (its plan capped at one iteration): the failed 3D, saying why.
+    both, _ = solve_rest(RESOLVE_3D, GENTLE, RIDER, Conditions(), OcpSettings(max_iter=1),
+                         plan, _start(plan), None, n, (), LineCache())
+    assert both.solver_status == "Maximum_CpuTime_Exceeded"
+    assert both.meta["resolve"]["line_refused"].startswith(
+        "the 3D re-solve ended Maximum_CpuTime_Exceeded; the line's: ")
     alone, _ = solve_rest(RESOLVE_3D, GENTLE, RIDER, Conditions(), OcpSettings(),
                           plan, _start(plan), None, None, (), LineCache())
     assert alone.solver_status == "Maximum_CpuTime_Exceeded"
