@@ -239,13 +239,14 @@ class CourseReplanner:
         warm = self._point[1] if self._point is not None and self._point[0] is guess else None
         self.last_warm = warm is not None
         line_n = None
-        # The line the 1D re-solves ride: the last 3D plan's, kept across 1D re-solves.
-        if st.model != RESOLVE_3D and (self._line_source is None or not on_line(guess)):
-            self._line_source = guess
-        model = chosen_model(st.model, self.course.length_m - start.s_m, st.auto_3d_max_m)
-        if st.model != RESOLVE_3D and self._line_source is not None:  # also the fall-back
+        # The line the 1D re-solves (and the fall-back of a failed 3D one) ride: the last
+        # 3D plan's, kept across 1D re-solves.
+        if st.model != RESOLVE_3D:
+            if self._line_source is None or not on_line(guess):
+                self._line_source = guess
             src = self._line_source
             line_n = np.interp(self.course.s_m, src.s_m, src.n_m)
+        model = chosen_model(st.model, self.course.length_m - start.s_m, st.auto_3d_max_m)
         job = (model, self.course, rider, self.conditions, st.ocp, guess, start, warm, line_n)
         self._pending = (stamp_s, self._waiter.submit(self._solve_in_worker, job))
         return True

@@ -214,7 +214,8 @@ class PacingEngine:
     def counters(self) -> dict[str, int]:
         """Estimator rejections and engine events (solves, failures, fallbacks, refits)."""
         with self._lock:
-            return {**self._estimator.counters, **self._stats}
+            # cp_up_held: the balance below zero with no higher CP proven (`cp_monitor`).
+            return {**self._estimator.counters, **self._stats, "cp_up_held": self._cp.up_held}
 
     @property
     def counts(self) -> EngineCounts:
@@ -317,7 +318,6 @@ class PacingEngine:
         the rest is re-solved with it. With `self._lock` held. Returns whether CP moved."""
         assert self._last_target_w is not None
         refit = self._cp.observe(stamp_s, state, self._last_target_w)
-        self._stats["cp_up_held"] = self._cp.up_held  # below zero, no higher CP proven
         if refit is None:
             return False
         self._stats["cp_refits"] += 1
