@@ -22,8 +22,10 @@ the request (about a live solve's time), waiting for the worker then if it is la
 Each re-solve starts warm from the primal-dual point of the plan it leaves when that
 point is known (`solve_plan(warm=)`): the point a re-solve returned with its plan, or
 for the first plan in force the point it was saved or cached with (`plan_point`).
-Without one (an older plan file, a 1D plan) the re-solve starts from the plan's primal
-point alone; which way each one started is counted (`last_warm`).
+A 3D re-solve from a 1D plan on the line (`RESOLVE_AUTO` near the finish) starts
+from the point of the last 3D plan instead (`resolve_model.Warm`, why there). Without
+one (an older plan file, a 1D plan) the re-solve starts from the plan's primal point
+alone; which way each one started is counted (`last_warm`).
 
 What a re-solve solves (`CourseReplanSettings.model`, `resolve_model`): the 3D OCP of the
 rest of the road, or with `RESOLVE_1D_LINE` the 1D OCP on the line of the last plan in
@@ -55,6 +57,7 @@ from itt_planner.live.resolve_model import (
     RESOLVE_AUTO,
     RESOLVE_MODELS,
     LineCache,
+    Warm,
     chosen_model,
     on_line,
     solve_rest,
@@ -210,15 +213,18 @@ class CourseReplanner:
         #: The last plan returned (or the first plan) and its primal-dual point: a
         #: re-solve from that plan starts from it (`solve_plan(warm=)`).
         self._point: tuple[Plan, PrimalDual] | None = None
+        #: The point of the last 3D plan that had one: a 3D re-solve from a plan on the
+        #: line starts from it (`resolve_model.Warm`).
+        self._point_3d: PrimalDual | None = None
         #: Why the first plan's re-solve starts without its point ("" if it has one).
         self.cold_reason = ""
         if plan is not None:
             point, self.cold_reason = plan_point(plan, settings.ocp)
-            self._point = None if point is None else (plan, point)
+            self._keep_point(plan, point)
         #: The plan whose line a 1D re-solve rides (`RESOLVE_1D_LINE`): the last plan in
         #: force that is not itself such a re-solve (the first plan, a 3D plan).
         self._line_source: Plan | None = None
-        #: Whether the last re-solve started was given a primal-dual point.
+        #: Whether the last re-solve started was given a primal-dual point of its model.
         self.last_warm = False
         self._last_request_s = -math.inf
         #: Worker processes started so far (one per replanner unless one died).
@@ -236,8 +242,11 @@ class CourseReplanner:
                 or self.course.length_m - start.s_m < st.min_remaining_m):
             return False
         self._last_request_s = stamp_s
-        warm = self._point[1] if self._point is not None and self._point[0] is guess else None
-        self.last_warm = warm is not None
+        own = self._point[1] if self._point is not None and self._point[0] is guess else None
+        warm = (Warm(road_3d=self._point_3d, line=own) if on_line(guess)
+                else Warm(road_3d=own))
+        model = chosen_model(st.model, self.course.length_m - start.s_m, st.auto_3d_max_m)
+        self.last_warm = (warm.road_3d if model == RESOLVE_3D else warm.line) is not None
         line_n = None
         # The line the 1D re-solves (and the fall-back of a failed 3D one) ride: the last
         # 3D plan's, kept across 1D re-solves.
@@ -246,7 +255,6 @@ class CourseReplanner:
                 self._line_source = guess
             src = self._line_source
             line_n = np.interp(self.course.s_m, src.s_m, src.n_m)
-        model = chosen_model(st.model, self.course.length_m - start.s_m, st.auto_3d_max_m)
         job = (model, self.course, rider, self.conditions, st.ocp, guess, start, warm, line_n)
         self._pending = (stamp_s, self._waiter.submit(self._solve_in_worker, job))
         return True
@@ -272,8 +280,15 @@ class CourseReplanner:
             plan, point = future.result()  # a deterministic engine waits for a late worker
         finally:
             self.waited_s += time.perf_counter() - t0
-        self._point = None if point is None else (plan, point)
+        self._keep_point(plan, point)
         return plan
+
+    def _keep_point(self, plan: Plan, point: PrimalDual | None) -> None:
+        """Keep `plan`'s point for a re-solve from it, and for any 3D re-solve if it is a
+        3D plan's."""
+        self._point = None if point is None else (plan, point)
+        if point is not None and plan.model == "3d":
+            self._point_3d = point
 
     def _solve_in_worker(self, job: tuple[Any, ...]) -> tuple[Plan, PrimalDual | None]:
         """`solve_plan_point` on `job` in the worker process (`_worker_main`), started

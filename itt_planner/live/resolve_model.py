@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -80,6 +81,23 @@ def on_line(plan: Plan) -> bool:
     return bool(plan.meta.get("line", {}).get("kind") == "plan")
 
 
+@dataclass(frozen=True)
+class Warm:
+    """The primal-dual points a re-solve may start from, one per model (a point fits
+    only its own model's NLP): `road_3d` for the 3D, `line` for the 1D on the line.
+
+    Why the 3D one need not be the point of the plan in force: under `RESOLVE_AUTO` the
+    plans in force far from the finish are 1D plans on the line, and the first 3D
+    re-solve within `auto_3d_max_m` started from their primal point alone. On the
+    Ardennes ride (calibrated rider, bench/RESULTS.md 2026-12-02, lead third session)
+    four such re-solves 11-17 km from the finish stopped at the 60 s CPU cap. So it
+    starts from the point of the last 3D plan instead (`CourseReplanner`), an older
+    plan's, as every re-solve starts from the point of a plan the rider has left."""
+
+    road_3d: PrimalDual | None = None
+    line: PrimalDual | None = None
+
+
 class LineCache:
     """The line of the 1D re-solves as a course, built once per line (the worker keeps
     it: the same line for every re-solve after a 3D plan)."""
@@ -96,33 +114,33 @@ class LineCache:
 
 
 def solve_rest(model: str, course: Course, rider: Rider, conditions: Conditions,
-               settings: OcpSettings, guess: Plan, start: Start, warm: PrimalDual | None,
+               settings: OcpSettings, guess: Plan, start: Start, warm: Warm,
                line_n: np.ndarray | None, free_3d: Sequence[str], lines: LineCache
                ) -> tuple[Plan, PrimalDual | None]:
     """The rest of `course` from `start` with `model` (module docstring): the plan (its
-    `meta["resolve"]`) and, if it converged, its primal-dual point. `warm`: the point of
-    `guess` (a 1D point if `guess` is `on_line`, else a 3D one); `line_n`: the line's
-    offset on the road's grid, for `RESOLVE_1D_LINE`, and with `RESOLVE_3D` the line a
-    failed 3D re-solve falls back to (`RESOLVE_AUTO`; None: no fall-back); `free_3d`: the
-    states a 3D re-solve leaves to the solver (`course_replan.free_states`)."""
+    `meta["resolve"]`) and, if it converged, its primal-dual point. `warm`: the points
+    each model's solve may start from; `line_n`: the line's offset on the road's grid,
+    for `RESOLVE_1D_LINE`, and with `RESOLVE_3D` the line a failed 3D re-solve falls back
+    to (`RESOLVE_AUTO`; None: no fall-back); `free_3d`: the states a 3D re-solve leaves
+    to the solver (`course_replan.free_states`)."""
     refused = ""
     if model == RESOLVE_1D_LINE and line_n is not None:
         plan, point, refused = _on_line(course, rider, conditions, settings, guess, start,
-                                        warm, line_n, lines)
+                                        warm.line, line_n, lines)
         if not refused:
             return plan, point
         log.info("course re-solve from s=%.0f m: the 1D plan on the line refused (%s); "
                  "solving the 3D", start.s_m, refused)
     plan, point = solve_plan_point(course, rider, conditions, settings, model="3d",
                                    guess=guess, start=start, free_start=free_3d,
-                                   warm=None if on_line(guess) else warm)
+                                   warm=warm.road_3d)
     plan.meta["resolve"] = {"model": RESOLVE_3D, "line_refused": refused}
     if plan.meta.get("success") or model != RESOLVE_3D or line_n is None:
         return plan, point
     # A failed 3D re-solve (module docstring: `RESOLVE_AUTO`): the line's plan, if rideable.
     failed = f"the 3D re-solve ended {plan.solver_status}"
     line_plan, line_point, refused = _on_line(course, rider, conditions, settings, guess,
-                                              start, warm, line_n, lines)
+                                              start, warm.line, line_n, lines)
     if refused:  # the engine logs and counts it with the failure
         plan.meta["resolve"]["line_refused"] = f"{failed}; the line's: {refused}"
         return plan, point
@@ -137,7 +155,7 @@ def _on_line(course: Course, rider: Rider, conditions: Conditions, settings: Ocp
     converged: then its `meta["resolve"]` says so)."""
     line = lines.get(course, line_n)
     plan, point = solve_rest_on_line(line, rider, conditions, settings, guess=guess,
-                                     start=start, warm=warm if on_line(guess) else None)
+                                     start=start, warm=warm)
     plan, refused = line_corners(plan, line, rider, conditions)
     if plan.converged and not refused:
         plan.meta["resolve"] = {"model": RESOLVE_1D_LINE, "line": line.course.name}

@@ -24,11 +24,13 @@ from itt_planner.live.resolve_model import (
     RESOLVE_3D,
     RESOLVE_AUTO,
     LineCache,
+    Warm,
     on_line,
     solve_rest,
 )
 from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.model.rider import PRESETS
+from itt_planner.ocp.cache import solve_keeping_point
 from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.line_plan import line_corners, solve_plan_on_line, solve_rest_on_line
 from itt_planner.ocp.plan import Plan
@@ -119,7 +121,7 @@ def test_a_tight_corner_is_ridden_within_its_limits() -> None:
 def test_solve_rest_states_the_model(plan: Plan) -> None:
     n = np.interp(GENTLE.s_m, plan.s_m, plan.n_m)
     rest, point = solve_rest(RESOLVE_1D_LINE, GENTLE, RIDER, Conditions(), OcpSettings(),
-                             plan, _start(plan), None, n, (), LineCache())
+                             plan, _start(plan), Warm(), n, (), LineCache())
     assert rest.converged and point is not None
     assert rest.meta["resolve"]["model"] == RESOLVE_1D_LINE
 
@@ -136,19 +138,19 @@ def test_a_failed_3d_resolve_falls_back_to_the_line(plan: Plan,
     monkeypatch.setattr(resolve_model, "solve_plan_point", failed_3d)
     n = np.interp(GENTLE.s_m, plan.s_m, plan.n_m)
     rest, point = solve_rest(RESOLVE_3D, GENTLE, RIDER, Conditions(), OcpSettings(),
-                             plan, _start(plan), None, n, (), LineCache())
+                             plan, _start(plan), Warm(), n, (), LineCache())
     assert rest.converged and point is not None
     assert rest.meta["resolve"] == {
         "model": RESOLVE_1D_LINE, "line": rest.meta["resolve"]["line"],
         "after_3d_failed": "the 3D re-solve ended Maximum_CpuTime_Exceeded"}
     # The line refused too (its plan capped at one iteration): the failed 3D, saying why.
     both, _ = solve_rest(RESOLVE_3D, GENTLE, RIDER, Conditions(), OcpSettings(max_iter=1),
-                         plan, _start(plan), None, n, (), LineCache())
+                         plan, _start(plan), Warm(), n, (), LineCache())
     assert both.solver_status == "Maximum_CpuTime_Exceeded"
     assert both.meta["resolve"]["line_refused"].startswith(
         "the 3D re-solve ended Maximum_CpuTime_Exceeded; the line's: ")
     alone, _ = solve_rest(RESOLVE_3D, GENTLE, RIDER, Conditions(), OcpSettings(),
-                          plan, _start(plan), None, None, (), LineCache())
+                          plan, _start(plan), Warm(), None, (), LineCache())
     assert alone.solver_status == "Maximum_CpuTime_Exceeded"
     assert alone.meta["resolve"]["model"] == RESOLVE_3D
 
@@ -194,6 +196,30 @@ def test_auto_resolves_on_the_line_far_from_the_finish_and_3d_near_it(plan: Plan
         rp.close()
 
 
+def test_a_3d_resolve_after_line_plans_starts_from_the_last_3d_plans_point() -> None:
+    """`auto` from a 3D plan: the re-solve far from the finish is the 1D on the line, the
+    next one near it the 3D, warm from the first plan's point, not from the line plan's
+    primal point alone (`resolve_model.Warm`), and it converges without a restart."""
+    first = solve_keeping_point(GENTLE, RIDER, Conditions(), OcpSettings(), "3d")
+    assert first.has_point
+    rp = CourseReplanner(GENTLE, Conditions(), CourseReplanSettings(
+        period_s=30.0, delay_s=15.0, min_remaining_m=200.0, model=RESOLVE_AUTO,
+        auto_3d_max_m=1000.0), deterministic=True, plan=first)
+    try:
+        assert rp.request(100.0, RIDER, first, _start(first, 300.0))  # 1.1 km left
+        far = rp.take(115.0)
+        assert far is not None and far.meta["resolve"]["model"] == RESOLVE_1D_LINE
+        assert rp.request(200.0, RIDER, far, _start(far, 600.0))  # 0.8 km left
+        assert rp.last_warm
+        near = rp.take(215.0)
+        assert near is not None and near.meta["resolve"]["model"] == RESOLVE_3D
+        assert near.meta["success"]
+        assert near.meta["attempts"][0]["strategy"] == "warm"
+        assert near.meta["attempts"][0]["outcome"] == "converged"
+    finally:
+        rp.close()
+
+
 def test_settings_reject_an_unknown_model() -> None:
     with pytest.raises(ValueError, match="re-solve model"):
         CourseReplanSettings(model="2d")
@@ -202,7 +228,7 @@ def test_settings_reject_an_unknown_model() -> None:
 def test_plan_in_force_counts_the_model(plan: Plan, monkeypatch: pytest.MonkeyPatch) -> None:
     n = np.interp(GENTLE.s_m, plan.s_m, plan.n_m)
     rest, _ = solve_rest(RESOLVE_1D_LINE, GENTLE, RIDER, Conditions(), OcpSettings(),
-                         plan, _start(plan), None, n, (), LineCache())
+                         plan, _start(plan), Warm(), n, (), LineCache())
     stats: Counter[str] = Counter()
     plans = PlanInForce(GENTLE, plan, RIDER.critical_power_w, band_j=2000.0,
                         conditions=Conditions(), replan=CourseReplanSettings(period_s=0.0),
