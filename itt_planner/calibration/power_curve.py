@@ -32,6 +32,7 @@ import numpy as np
 from scipy.optimize import curve_fit
 
 from itt_planner.calibration.ride_data import CalibrationError, RideSeries
+from itt_planner.model.mean_max import mean_max_power
 
 #: Durations (s) of the MMP curve.
 DURATIONS_S = (1, 5, 10, 15, 20, 30, 45, 60, 90, 120, 150, 180, 240, 300, 360, 420, 480, 600,
@@ -97,11 +98,9 @@ def mmp_curve(rides: list[RideSeries], durations_s: tuple[int, ...] = DURATIONS_
             grid = np.arange(t[0], t[-1] + 1e-9, 1.0)
             # Power as recorded is held until the next record (the meter's average).
             p = ride.power_w[idx][np.searchsorted(t, grid, side="right") - 1]
-            csum = np.concatenate([[0.0], np.cumsum(p)])
-            for d in durations_s:
-                if d <= len(p):
-                    value = float(np.max(csum[d:] - csum[:-d]) / d)
-                    best[d] = max(best.get(d, 0.0), value)
+            energy = np.concatenate([[0.0], np.cumsum(p)])
+            for d, value in mean_max_power(energy, durations_s).items():
+                best[d] = max(best.get(d, 0.0), value)
     return best
 
 

@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from itt_planner.model.mean_max import mean_max_power
 from itt_planner.model.rider import Rider
 from itt_planner.model.wprime import WPrimeModel, e_n_rate
 
@@ -111,14 +112,9 @@ class WPrimeBalance:
         knots_t = np.column_stack([stamps[:-1], stamps[:-1] + held]).ravel()
         knots_e = np.column_stack([energy[:-1], energy[1:]]).ravel()
         grid = np.arange(stamps[0], stamps[-1] + 1e-9, 1.0)
-        e = np.interp(grid, knots_t, knots_e)
-        best = (0.0, 0.0, 0.0)
-        for d in durations_s:
-            k = int(d)
-            if k < len(e):
-                mmp = float(np.max(e[k:] - e[:-k])) / k
-                best = max(best, (mmp - self.w_prime_j / k, float(k), mmp))
-        return best
+        mmp = mean_max_power(np.interp(grid, knots_t, knots_e), durations_s)
+        return max([(0.0, 0.0, 0.0)]
+                   + [(p - self.w_prime_j / k, float(k), p) for k, p in mmp.items()])
 
     def use_critical_power(self, cp_w: float) -> None:
         """Carry on with critical power `cp_w`: the balance now is that of the whole
