@@ -175,49 +175,49 @@ def test_worker_resolves_on_the_line(plan: Plan) -> None:
         rp.close()
 
 
-def test_auto_resolves_on_the_line_far_from_the_finish_and_3d_near_it(plan: Plan) -> None:
-    """`auto`: the 1D on the line while more than `auto_3d_max_m` of the course is left,
-    the 3D within it (here 1 km, on this 1.4 km course)."""
-    rp = CourseReplanner(GENTLE, Conditions(), CourseReplanSettings(
-        period_s=30.0, delay_s=15.0, min_remaining_m=200.0, model=RESOLVE_AUTO,
-        auto_3d_max_m=1000.0), deterministic=True, plan=plan)
-    try:
-        assert rp.request(100.0, RIDER, plan, _start(plan, 300.0))  # 1.1 km left
-        far = rp.take(115.0)
-        assert far is not None and far.meta["resolve"]["model"] == RESOLVE_1D_LINE
-        assert rp.request(200.0, RIDER, far, _start(far, 600.0))  # 0.8 km left
-        near = rp.take(215.0)
-        # The 3D is asked for; here it ends Restoration_Failed from the line's 1D plan
-        # (442 iterations), so the plan is the line's, saying why.
-        assert near is not None
-        assert (near.meta["resolve"]["model"] == RESOLVE_3D
-                or near.meta["resolve"]["after_3d_failed"].startswith("the 3D re-solve"))
-    finally:
-        rp.close()
-
-
-def test_a_3d_resolve_after_line_plans_starts_from_the_last_3d_plans_point() -> None:
-    """`auto` from a 3D plan: the re-solve far from the finish is the 1D on the line, the
-    next one near it the 3D, warm from the first plan's point, not from the line plan's
-    primal point alone (`resolve_model.Warm`), and it converges without a restart."""
-    first = solve_keeping_point(GENTLE, RIDER, Conditions(), OcpSettings(), "3d")
-    assert first.has_point
+def _far_then_near(first: Plan) -> tuple[bool, Plan]:
+    """`auto` (3D within 1 km of the finish, on this 1.4 km course) from the plan `first`:
+    a re-solve 1.1 km from the finish, which must be the 1D on the line, then one from
+    that plan 0.8 km from it. Returns whether the second was given a point of its model,
+    and its plan."""
     rp = CourseReplanner(GENTLE, Conditions(), CourseReplanSettings(
         period_s=30.0, delay_s=15.0, min_remaining_m=200.0, model=RESOLVE_AUTO,
         auto_3d_max_m=1000.0), deterministic=True, plan=first)
     try:
-        assert rp.request(100.0, RIDER, first, _start(first, 300.0))  # 1.1 km left
+        assert rp.request(100.0, RIDER, first, _start(first, 300.0))
         far = rp.take(115.0)
         assert far is not None and far.meta["resolve"]["model"] == RESOLVE_1D_LINE
-        assert rp.request(200.0, RIDER, far, _start(far, 600.0))  # 0.8 km left
-        assert rp.last_warm
+        assert rp.request(200.0, RIDER, far, _start(far, 600.0))
         near = rp.take(215.0)
-        assert near is not None and near.meta["resolve"]["model"] == RESOLVE_3D
-        assert near.meta["success"]
-        assert near.meta["attempts"][0]["strategy"] == "warm"
-        assert near.meta["attempts"][0]["outcome"] == "converged"
+        assert near is not None
+        return rp.last_warm, near
     finally:
         rp.close()
+
+
+def test_auto_resolves_on_the_line_far_from_the_finish_and_3d_near_it(plan: Plan) -> None:
+    """`auto`: the 1D on the line while more than `auto_3d_max_m` of the course is left,
+    the 3D within it. From a 1D plan on the line there is no 3D point to start from: the
+    3D ends Restoration_Failed from the line plan's primal point (442 iterations), so the
+    plan is the line's, saying why."""
+    warm, near = _far_then_near(plan)
+    assert not warm
+    assert (near.meta["resolve"]["model"] == RESOLVE_3D
+            or near.meta["resolve"]["after_3d_failed"].startswith("the 3D re-solve"))
+
+
+def test_a_3d_resolve_after_line_plans_starts_from_the_last_3d_plans_point() -> None:
+    """`auto` from a 3D plan: the 3D re-solve after a 1D plan on the line starts from the
+    first plan's point, not from the line plan's primal point alone
+    (`resolve_model.Warm`), and converges without a restart (35 iterations; from the
+    line plan's primal point: 85 to Restoration_Failed, then 44 with the smaller push)."""
+    first = solve_keeping_point(GENTLE, RIDER, Conditions(), OcpSettings(), "3d")
+    assert first.has_point
+    warm, near = _far_then_near(first)
+    assert warm
+    assert near.meta["resolve"]["model"] == RESOLVE_3D and near.meta["success"]
+    assert (near.meta["attempts"][0]["strategy"], near.meta["attempts"][0]["outcome"]) == (
+        "warm", "converged")
 
 
 def test_settings_reject_an_unknown_model() -> None:
