@@ -63,8 +63,11 @@ start may use `_FIRST_SHARE` of it):
   built for that cap, from the default guess, not from the invalid plan (it rides on
   the artefact); still invalid: the whole mesh at half the spacing (at 20 m the 1D
   plans of bologna and rovereto-like were invalid, 2026-12-01). 3D: the plan's nodes
-  with the slow intervals split (`course_nlp.cut_nodes`), resumed from the plan's
-  primal-dual point moved onto them (`cut_point`), from its primal point if that fails.
+  with the slow intervals split (`course_nlp.cut_nodes`), and those whose lateral,
+  heading or roll defect is over its tolerance (`mesh.split_spacing_m`: a re-solve of
+  Ardennes' last 15 km converged with a roll defect 2x its tolerance where the speed
+  rule split nothing, Invalid_Plan), resumed from the plan's primal-dual point moved
+  onto them (`cut_point`), from its primal point if that fails.
   A mesh built afresh kept 2 of 348 nodes (test hairpin, 600 m straights), the plan
   on it sat off the active arcs of C11/C15/C16: a rider limited to 4 m/s^2 ended
   Infeasible_Problem_Detected after 419 iterations (split and resumed: 7; issue 18).
@@ -103,13 +106,9 @@ from itt_planner.ocp.course_windows import (
     window_start,
 )
 from itt_planner.ocp.guess import plan_spacing_cap
-from itt_planner.ocp.mesh import build_mesh
+from itt_planner.ocp.mesh import build_mesh, split_spacing_m
 from itt_planner.ocp.plan import Plan
-from itt_planner.ocp.solver import (
-    INVALID_RAW_STATUS,
-    PlanStatus,
-    SolveResult,
-)
+from itt_planner.ocp.solver import INVALID_RAW_STATUS, PlanStatus, SolveResult
 from itt_planner.ocp.verify import Verification, verify_plan
 
 log = logging.getLogger(__name__)
@@ -157,8 +156,9 @@ class CourseSolve:
     v0: float
     budget: Budget
     solve_1d: Callable[[OcpSettings], Plan]
-    #: The primal-dual point of the last plan `finish` made.
+    #: The primal-dual point of the last plan `finish` made, and its verification.
     point: PrimalDual | None = None
+    check: Verification | None = None
 
     @property
     def start_m(self) -> float:
@@ -342,6 +342,9 @@ class CourseSolve:
                 break
             cap = np.minimum(cap, plan_spacing_cap(self.course, plan, self.rider,
                                                    self.conditions))
+            if self.check is not None:
+                cap = np.minimum(cap, split_spacing_m(self.course.s_m, prob.nodes,
+                                                      self.check.unresolved_s_m))
             nodes = (self.mesh(cap) if self.model == "1d"
                      else cut_nodes(prob.nodes, self.start_m, 0.0, self.course.s_m, cap))
             # Any node the plan's speeds add counts: a hard launch on a 41 km course asks
@@ -390,6 +393,7 @@ class CourseSolve:
                             "s = %.0f m", course.name, check.worst, check.worst_ratio,
                             check.worst_s_m)
         meta["verification"] = None if check is None else check.as_dict()
+        self.check = check
         meta["success"] = status is PlanStatus.CONVERGED
         self.point = None if res.lam_x is None or res.lam_g is None else PrimalDual(
             prob.nodes, res.w, res.lam_x, res.lam_g)

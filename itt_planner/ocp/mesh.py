@@ -15,6 +15,8 @@ a steep climb ridden slowly a metre or two, fast road nothing.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from itt_planner.course.geometry import Course
@@ -35,6 +37,22 @@ def speed_spacing_m(v_mps: np.ndarray, accel_mps2: np.ndarray) -> np.ndarray:
     accelerations (force per unit mass) `accel_mps2`."""
     h: np.ndarray = np.asarray(v_mps) ** 2 / (2 * np.maximum(np.abs(accel_mps2), 1e-6))
     return h
+
+
+def split_spacing_m(grid_s_m: np.ndarray, nodes: np.ndarray, starts_s_m: Sequence[float]
+                    ) -> np.ndarray:
+    """Spacing cap on the grid `grid_s_m` that splits each interval of `nodes` starting at
+    one of `starts_s_m` in two (half its length on the grid points around it, so that
+    the cap read at its start is that), no cap elsewhere: where a plan's step did not
+    resolve its dynamics (`verify.Verification.unresolved_s_m`; an RK4 step's error
+    falls as h^5)."""
+    cap = np.full(len(grid_s_m), np.inf)
+    i = np.searchsorted(nodes, np.asarray(starts_s_m, float))
+    for a, b in zip(nodes[i], nodes[np.minimum(i + 1, len(nodes) - 1)], strict=True):
+        lo = max(int(np.searchsorted(grid_s_m, a, side="right")) - 1, 0)
+        hi = int(np.searchsorted(grid_s_m, b, side="right")) + 1
+        cap[lo:hi] = np.minimum(cap[lo:hi], 0.5 * (b - a))
+    return cap
 
 
 def target_spacing(course: Course, h_min_m: float, h_max_m: float, grade: float = 0.25,

@@ -116,10 +116,18 @@ class Verification:
     worst_ratio: float
     replay_finish_s: float
     check_time_s: float
+    #: 3D: where the intervals start whose lateral, heading or roll defect exceeds its
+    #: tolerance: the transcription's step does not resolve the dynamics there (the
+    #: restarts split them: `course_restarts.CourseSolve.refine`).
+    unresolved_s_m: tuple[float, ...] = ()
 
-    def as_dict(self) -> dict[str, float | bool | str]:
-        """JSON-ready figures (rounded)."""
-        return {k: (round(v, 4) if isinstance(v, float) else v) for k, v in asdict(self).items()}
+    def as_dict(self) -> dict[str, float | bool | str | int]:
+        """JSON-ready figures (rounded; the unresolved intervals counted)."""
+        out: dict[str, float | bool | str | int] = {
+            k: (round(v, 4) if isinstance(v, float) else v)
+            for k, v in asdict(self).items() if k != "unresolved_s_m"}
+        out["unresolved_intervals"] = len(self.unresolved_s_m)
+        return out
 
 
 def verify_plan(plan: Plan, course: Course, rider: Rider, conditions: Conditions = Conditions(),
@@ -150,6 +158,7 @@ def verify_plan(plan: Plan, course: Course, rider: Rider, conditions: Conditions
         "w_prime": dw / (tol.w_prime_j + tol.w_prime_rel * rider.w_prime_j),
     }
     lateral = {"lateral": 0.0, "heading": 0.0, "roll": 0.0, "path": 0.0}
+    unresolved = np.zeros(plan.n_nodes - 1, bool)
     if model is not None:
         over = np.max(np.maximum(_path_values(plan, course, rider, conditions, model), 0.0),
                       axis=0)
@@ -163,6 +172,7 @@ def verify_plan(plan: Plan, course: Course, rider: Rider, conditions: Conditions
             d = np.abs(defects[model.index(name)])
             lateral[key] = float(np.max(d)) if d.size else 0.0
             ratios[key] = np.concatenate([[0.0], d / scale])
+            unresolved |= d > scale
     worst, worst_i, worst_ratio = "none", 0, 0.0
     for name, r in ratios.items():
         i = int(np.argmax(r))
@@ -178,7 +188,8 @@ def verify_plan(plan: Plan, course: Course, rider: Rider, conditions: Conditions
         max_roll_defect_rad=lateral["roll"], max_path_violation=lateral["path"],
         worst=worst if finite else "non-finite replay",
         worst_s_m=float(plan.s_m[worst_i]), worst_ratio=worst_ratio if finite else math.inf,
-        replay_finish_s=float(t_sim[-1]), check_time_s=time.perf_counter() - t0)
+        replay_finish_s=float(t_sim[-1]), check_time_s=time.perf_counter() - t0,
+        unresolved_s_m=tuple(map(float, plan.s_m[:-1][unresolved])))
 
 
 def _replay(plan: Plan, course: Course, rider: Rider, conditions: Conditions,

@@ -10,7 +10,14 @@ from support.courses import hairpin, straight
 
 from itt_planner.course.builder import build_course
 from itt_planner.course.geometry import Course
-from itt_planner.ocp.mesh import build_mesh, road_data, speed_spacing_m, target_spacing
+from itt_planner.ocp.course_nlp import cut_nodes
+from itt_planner.ocp.mesh import (
+    build_mesh,
+    road_data,
+    speed_spacing_m,
+    split_spacing_m,
+    target_spacing,
+)
 
 #: A flat straight, a 15 m hairpin, a 6 % climb and a descent: every rule of the mesh.
 ROAD = build_course({"name": "mesh-test", "segments": [
@@ -109,3 +116,19 @@ def test_road_data_turns_and_climbs_exactly_as_the_road(course: Course) -> None:
     assert climb == pytest.approx(float(course.z_m[-1] - course.z_m[0]), abs=1e-9)
     mid = 0.5 * (nodes[1:] + nodes[:-1])
     np.testing.assert_allclose(theta_mid, course.at("theta_rad", mid))
+
+
+def test_split_spacing_splits_just_the_named_intervals() -> None:
+    """Intervals a plan's step did not resolve are halved (`cut_nodes` with the cap);
+    their neighbours at most once more, the rest of the mesh stays."""
+    nodes = build_mesh(ROAD, 1.0, 10.0)
+    bad = nodes[[5, 40, len(nodes) - 2]]
+    cut = cut_nodes(nodes, 0.0, 0.0, ROAD.s_m, split_spacing_m(ROAD.s_m, nodes, bad))
+    assert set(nodes) <= set(cut)
+    for a in bad:
+        i = int(np.searchsorted(nodes, a))
+        assert np.sum((cut > a) & (cut < nodes[i + 1])) == 1  # split in two
+        assert cut[np.searchsorted(cut, a) + 1] == pytest.approx(0.5 * (a + nodes[i + 1]))
+    assert len(cut) - len(nodes) <= 2 * len(bad)
+    same = cut_nodes(nodes, 0.0, 0.0, ROAD.s_m, split_spacing_m(ROAD.s_m, nodes, ()))
+    assert np.array_equal(same, nodes)

@@ -125,3 +125,38 @@ def test_3d_plan_lateral_check() -> None:
     bad = dataclasses.replace(plan, u_delta=plan.u_delta + 2.0)
     again = verify_plan(bad, course, RIDER, model=spatial_model("3d", WPrimeModel.SKIBA))
     assert not again.verified and again.worst in ("lateral", "heading", "roll")
+    # The intervals it does not resolve are named by their start, for the restarts to
+    # split them (the worst defect is placed at its interval's end).
+    worst_end = int(np.searchsorted(plan.s_m, again.worst_s_m))
+    assert plan.s_m[worst_end - 1] in again.unresolved_s_m
+    assert set(again.unresolved_s_m) <= set(plan.s_m[:-1])
+    assert again.as_dict()["unresolved_intervals"] == len(again.unresolved_s_m)
+    assert ver["unresolved_intervals"] == 0
+
+
+def test_a_3d_plan_with_unresolved_intervals_is_resolved_on_them_split(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A 3D plan whose check finds an interval the step does not resolve (here made up:
+    the first check names the longest interval) is re-solved on its nodes with that
+    interval split, resumed from its point, and verified (`CourseSolve.refine`)."""
+    from itt_planner.ocp import course_restarts
+
+    real = course_restarts.verify_plan
+    flagged: list[tuple[float, float]] = []  # the interval named: its start and end
+
+    def flag_once(plan: Plan, *args: object, **kwargs: object) -> object:
+        check = real(plan, *args, **kwargs)  # type: ignore[arg-type]
+        if flagged:
+            return check
+        i = int(np.argmax(np.diff(plan.s_m)))
+        flagged.append((float(plan.s_m[i]), float(plan.s_m[i + 1])))
+        return dataclasses.replace(check, verified=False, unresolved_s_m=(flagged[0][0],))
+
+    monkeypatch.setattr(course_restarts, "verify_plan", flag_once)
+    plan = solve_plan(HILL, RIDER, model="3d")
+    first, refined = plan.meta["attempts"][0], plan.meta["attempts"][-1]
+    assert plan.converged and refined["strategy"] == "refined where slow, resumed"
+    assert refined["n_nodes"] > first["n_nodes"]
+    (a, b), = flagged
+    inside = plan.s_m[(plan.s_m > a) & (plan.s_m < b)]
+    assert inside == pytest.approx([0.5 * (a + b)])  # the interval split in two
