@@ -122,7 +122,7 @@ def test_split_spacing_splits_just_the_named_intervals() -> None:
     """Intervals a plan's step did not resolve are halved (`cut_nodes` with the cap);
     their neighbours at most once more, the rest of the mesh stays."""
     nodes = build_mesh(ROAD, 1.0, 10.0)
-    bad = nodes[[5, 40, len(nodes) - 2]]
+    bad = [float(nodes[k]) for k in (5, 40, len(nodes) - 2)]
     cut = cut_nodes(nodes, 0.0, 0.0, ROAD.s_m, split_spacing_m(ROAD.s_m, nodes, bad))
     assert set(nodes) <= set(cut)
     for a in bad:

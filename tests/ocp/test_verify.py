@@ -141,7 +141,7 @@ def test_a_3d_plan_with_unresolved_intervals_is_resolved_on_them_split(
     interval split, resumed from its point, and verified (`CourseSolve.refine`)."""
     from itt_planner.ocp import course_restarts
 
-    real = course_restarts.verify_plan
+    real = verify_plan
     flagged: list[tuple[float, float]] = []  # the interval named: its start and end
 
     def flag_once(plan: Plan, *args: object, **kwargs: object) -> object:
