@@ -302,7 +302,10 @@ def test_play_node_record_pipeline_agrees_with_the_embedded_replay(
     truth = Plan.load(ride.plan)
     ridden_m = float(np.interp(ride.duration_s, truth.t_s, truth.s_m))
     env = ros_env
-    params = _params(tmp_path, plan=str(ride.plan), deterministic=True)
+    # The node's own log (inputs as decoded, advice out) is kept for a post-mortem: a
+    # loaded run advised first at stamp 5 s, not 0, then lost 4 GPS fixes as outliers.
+    params = _params(tmp_path, plan=str(ride.plan), deterministic=True,
+                     output_log=str(tmp_path / "node.mcap"))
     node = Proc(_node_args(ride, tmp_path, "--use-sim-time", "--params-file", str(params)),
                 env, tmp_path / "node.log")
     recorder = Proc(cli("record", "-a", "-o", str(tmp_path / "out.mcap"), "--use-sim-time",
