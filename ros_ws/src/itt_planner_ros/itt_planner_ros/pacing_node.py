@@ -222,9 +222,10 @@ def run(args: list[str] | None = None, *, namespace: str = topics.DEFAULT_NAMESP
     rclpy's handler wakes the executor first and shuts the context down after, from
     another thread: an executor that woke before the shutdown waited again, on a context
     that nothing would wake any more (with `use_sim_time` and the player gone, its timer
-    never fires: SIGTERM left the node spinning for good, 1 of 7 pipeline tests at load
-    ~8 on 2 cores, 2026-12-03), or built its next wait set as the context went away
-    (RCLError traceback, no result: 2 of 5 SIGTERMs mid-ride). Here a signal only sets an
+    never fires: SIGTERM left the node spinning for good, in 1 of 8 pipeline tests and 1
+    of 30 SIGTERMs after a short play, load 4-13 on 2 cores, 2026-12-03), or built its
+    next wait set as the context went away (RCLError traceback, no result: 3 of 16
+    SIGTERMs mid-ride; 0 of 30 and 0 of 13 here). Here a signal only sets an
     event; the executor spins on a thread of its own, sees it and is joined, then the
     re-solve worker is killed and the callbacks under way are waited for
     (`STOP_GRACE_S`), and only then are the node and the context shut down.
