@@ -9,6 +9,7 @@ the core run without it.
 
 from __future__ import annotations
 
+import faulthandler
 import logging
 import signal
 import sys
@@ -30,10 +31,17 @@ def _ros() -> None:
         raise IttError(f"{reason}; elsewhere use the Docker image (see the README)")
 
 
+#: On this signal a node, player or recorder writes every thread's Python stack to stderr
+#: and runs on: how a hung process says where it hangs (the ROS tests send it first).
+STACKS_SIGNAL = signal.SIGUSR1
+
+
 def _log_to_stderr() -> None:
-    """The core's log lines on stderr, in ROS 2's console format."""
+    """The core's log lines on stderr, in ROS 2's console format; the stacks on
+    `STACKS_SIGNAL`."""
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,
                         format="[%(levelname)s] [%(created).3f] [%(name)s]: %(message)s")
+    faulthandler.register(STACKS_SIGNAL, all_threads=True)
 
 
 def _stop_on_signals() -> threading.Event:

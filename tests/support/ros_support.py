@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from itt_planner.cli.node import STACKS_SIGNAL
+
 #: POSIX stamp of the synthetic ride's start (2026-11-22 08:00 UTC).
 RIDE_T0_S = 1795334400.0
 #: The rider of the test ride (its full-course plan on the hairpin course converges).
@@ -121,11 +123,19 @@ class Proc:
         try:
             out, _ = self.popen.communicate(timeout=timeout_s)
         except subprocess.TimeoutExpired:
+            self.dump_stacks()
             self.popen.kill()
             raise AssertionError(f"still running after {timeout_s} s:\n{self.text()}") from None
         finally:
             self._err.close()
         return out.decode()
+
+    def dump_stacks(self) -> None:
+        """Have the process write every thread's Python stack to its log (the CLI's
+        `faulthandler` on `STACKS_SIGNAL`), so a hung process says where it hangs."""
+        if self.popen.poll() is None:
+            self.popen.send_signal(STACKS_SIGNAL)
+            time.sleep(1.0)
 
     def rss_mb(self) -> float:
         """Resident memory of the process (MB, from /proc)."""

@@ -27,6 +27,8 @@ input stamp: never the wall clock.
 
 from __future__ import annotations
 
+import signal
+import threading
 import time
 from dataclasses import fields
 from pathlib import Path
@@ -36,7 +38,7 @@ import rclpy
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
-from rclpy.utilities import ok as rclpy_ok
+from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import try_shutdown
 
 from itt_msgs_py import deserialize, registry, serialize, topics
@@ -56,6 +58,40 @@ NODE_PARAMS = {'tick_period_s': 0.1, 'rerun_sink': '', 'output_log': '',
                'state_file': '', 'state_period_s': 2.0}
 #: A clock jump longer than this (a player restarted further on) is not ticked through.
 MAX_CATCH_UP_S = 5.0
+#: After SIGINT/SIGTERM, how long the callbacks under way may take to end (`run`). With
+#: the re-solve worker killed, the longest is a tick's horizon solve: up to 0.93 s wall
+#: at load ~3.5 on 2 cores (120 iterations, the deterministic cap, 2026-12-03).
+STOP_GRACE_S = 10.0
+#: How soon the executor's thread sees a stop (`_spin`).
+SPIN_POLL_S = 0.1
+
+
+class _Calls:
+    """The node's callbacks under way, so a stop can wait for them; none starts after."""
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self.running = 0
+        self._closed = False
+
+    def begin(self) -> bool:
+        """Count a callback in; False (not counted: return at once) once closed."""
+        with self._cond:
+            if self._closed:
+                return False
+            self.running += 1
+            return True
+
+    def end(self) -> None:
+        with self._cond:
+            self.running -= 1
+            self._cond.notify_all()
+
+    def close(self, timeout_s: float) -> bool:
+        """Let no callback start; wait for those running. Returns whether all ended."""
+        with self._cond:
+            self._closed = True
+            return self._cond.wait_for(lambda: self.running == 0, timeout_s)
 
 
 class PacingNode(Node):
@@ -77,6 +113,8 @@ class PacingNode(Node):
                                         rerun_sinks=sinks, publish=self._publish,
                                         max_catch_up_s=MAX_CATCH_UP_S)
         self._state_path = Path(value['state_file']) if value['state_file'] else None
+        #: The callbacks under way (`run` waits for them before it closes the session).
+        self.calls = _Calls()
         self._last_save = time.monotonic()
         try:
             self._resume()
@@ -106,12 +144,17 @@ class PacingNode(Node):
         topic = entry.topic
 
         def callback(data: bytes) -> None:
-            try:
-                sample = entry.to_sample(deserialize(data, topic.msgtype))
-            except Exception as err:  # noqa: BLE001  (a corrupt payload raises many types)
-                self.session.on_malformed(topic.key, f'{type(err).__name__}: {err}')
+            if not self.calls.begin():
                 return
-            self.session.on_sample(sample)  # the engine counts samples it rejects
+            try:
+                try:
+                    sample = entry.to_sample(deserialize(data, topic.msgtype))
+                except Exception as err:  # noqa: BLE001  (a corrupt payload raises many types)
+                    self.session.on_malformed(topic.key, f'{type(err).__name__}: {err}')
+                    return
+                self.session.on_sample(sample)  # the engine counts samples it rejects
+            finally:
+                self.calls.end()
         return callback
 
     def _now_s(self) -> float | None:
@@ -122,6 +165,14 @@ class PacingNode(Node):
         return None if state is None else state.stamp_s
 
     def _tick(self) -> None:
+        if not self.calls.begin():
+            return
+        try:
+            self._tick_counted()
+        finally:
+            self.calls.end()
+
+    def _tick_counted(self) -> None:
         now = self._now_s()
         if now is not None:
             try:
@@ -167,41 +218,96 @@ def run(args: list[str] | None = None, *, namespace: str = topics.DEFAULT_NAMESP
         parameter_overrides: list[Any] | None = None) -> dict[str, Any]:
     """Spin the node until SIGINT/SIGTERM; save its state, finish its outputs.
 
+    The signals are this function's, not rclpy's (`rclpy.init` without its handlers).
+    rclpy's handler wakes the executor first and shuts the context down after, from
+    another thread: an executor that woke before the shutdown waited again, on a context
+    that nothing would wake any more (with `use_sim_time` and the player gone, its timer
+    never fires: SIGTERM left the node spinning for good, in 1 of 8 pipeline tests and 1
+    of 30 SIGTERMs after a short play, load 4-13 on 2 cores, 2026-12-03), or built its
+    next wait set as the context went away (RCLError traceback, no result: 3 of 16
+    SIGTERMs mid-ride; 0 of 30 and 0 of 13 here). Here a signal only sets an
+    event; the executor spins on a thread of its own, sees it and is joined, then the
+    re-solve worker is killed and the callbacks under way are waited for
+    (`STOP_GRACE_S`), and only then are the node and the context shut down.
+
     Raises:
         IttError: the course, rider or plan cannot be had.
     """
-    rclpy.init(args=args)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    previous = _stop_on_signals(stop)
     node = None
+    ready = False
     try:
-        try:
-            node = PacingNode(namespace=namespace, parameter_overrides=parameter_overrides)
-        except Exception:
-            if rclpy_ok():
-                raise
-            # SIGINT/SIGTERM during start-up (the plan solve can take a minute) shut the
-            # context down under the constructor: that is a stop, not a failure.
-            return {}
-        executor = MultiThreadedExecutor(num_threads=4)
-        executor.add_node(node)
-        try:
-            executor.spin()
-        finally:
-            # Kill a running course re-solve first: a tick waiting for it then returns,
-            # and the executor's shutdown does not wait minutes for that solve.
-            node.session.engine.close()
-            executor.shutdown()
-    except (KeyboardInterrupt, ExternalShutdownException):
+        node = PacingNode(namespace=namespace, parameter_overrides=parameter_overrides)
+        # A signal during start-up (the plan solve can take a minute) is seen here: a
+        # stop before the node was ready, not a failure.
+        ready = not stop.is_set()
+        if ready:
+            _spin_until(node, stop)
+    except KeyboardInterrupt:  # SIGINT before the handlers were installed
         pass
     finally:
-        result = {} if node is None else {'namespace': node.get_namespace(),
-                                           **node.session.counts(),
-                                           'malformed': dict(node.session.malformed)}
+        result = {} if node is None or not ready else {
+            'namespace': node.get_namespace(), **node.session.counts(),
+            'malformed': dict(node.session.malformed)}
         if node is not None:
             node.save_state()
             node.session.close()
             node.destroy_node()  # type: ignore[no-untyped-call]
         try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     return result
+
+
+def _stop_on_signals(stop: threading.Event) -> dict[int, Any]:
+    """Set `stop` on SIGINT and SIGTERM (only the main thread can install handlers; a
+    caller on another thread stops the node its own way). Returns the handlers replaced."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {sig: signal.signal(sig, lambda _sig, _frame: stop.set())
+            for sig in (signal.SIGINT, signal.SIGTERM)}
+
+
+def _spin_until(node: PacingNode, stop: threading.Event) -> None:
+    """Run the node's callbacks on an executor thread until `stop` is set, then stop
+    them in order (`run`). The main thread waits on the event, so a signal's handler runs
+    at once (a thread blocked in rcl_wait would run it only when the wait returns)."""
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    errors: list[BaseException] = []
+    spinning = threading.Thread(target=_spin, args=(executor, stop, errors), name='executor')
+    spinning.start()
+    try:
+        stop.wait()
+    finally:
+        stop.set()
+        spinning.join()
+        # Kill a running course re-solve first: a tick waiting for it then returns.
+        node.session.engine.close()
+        if not node.calls.close(STOP_GRACE_S):
+            node._log().error(f'{node.calls.running} callback(s) still running '
+                              f'{STOP_GRACE_S:.0f} s after the stop; stopping anyway')
+        executor.shutdown(timeout_sec=0)
+    if errors:
+        raise errors[0]
+
+
+def _spin(executor: MultiThreadedExecutor, stop: threading.Event,
+          errors: list[BaseException]) -> None:
+    """Dispatch callbacks until `stop` (seen within `SPIN_POLL_S`: `Executor.wake`
+    does not end a `spin_once` that has no callback to run); a callback's error (raised
+    here by the executor) stops the node and is raised again by `_spin_until`."""
+    try:
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=SPIN_POLL_S)
+    except ExternalShutdownException:
+        pass
+    except BaseException as err:  # noqa: BLE001  (handed to the main thread)
+        errors.append(err)
+    finally:
+        stop.set()
 
 
 def main(args: list[str] | None = None) -> None:
