@@ -38,15 +38,13 @@ from __future__ import annotations
 
 import math
 import os
-import pickle
-import signal
 import subprocess
 import sys
 import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import IO, TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -56,12 +54,11 @@ from itt_planner.live.resolve_model import (
     RESOLVE_3D,
     RESOLVE_AUTO,
     RESOLVE_MODELS,
-    LineCache,
     Warm,
     chosen_model,
     on_line,
-    solve_rest,
 )
+from itt_planner.live.resolve_worker import WORKER_PROGRAM, receive, send
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
@@ -209,6 +206,7 @@ class CourseReplanner:
         # One thread that waits on the worker process (it runs no solver itself).
         self._waiter = ThreadPoolExecutor(max_workers=1, thread_name_prefix="course_replan")
         self._worker: subprocess.Popen[bytes] | None = None
+        self._closed = threading.Event()
         self._pending: tuple[float, Future[tuple[Plan, PrimalDual | None]]] | None = None
         #: The last plan returned (or the first plan) and its primal-dual point: a
         #: re-solve from that plan starts from it (`solve_plan(warm=)`).
@@ -255,7 +253,9 @@ class CourseReplanner:
                 self._line_source = guess
             src = self._line_source
             line_n = np.interp(self.course.s_m, src.s_m, src.n_m)
-        job = (model, self.course, rider, self.conditions, st.ocp, guess, start, warm, line_n)
+        free = free_states(start, start_speed(rider, self.conditions, st.ocp))
+        job = (model, self.course, rider, self.conditions, st.ocp, guess, start, warm, line_n,
+               free)
         self._pending = (stamp_s, self._waiter.submit(self._solve_in_worker, job))
         return True
 
@@ -291,7 +291,7 @@ class CourseReplanner:
             self._point_3d = point
 
     def _solve_in_worker(self, job: tuple[Any, ...]) -> tuple[Plan, PrimalDual | None]:
-        """`solve_plan_point` on `job` in the worker process (`_worker_main`), started
+        """`solve_plan_point` on `job` in the worker process (`resolve_worker`), started
         at the first re-solve and kept for the next ones.
 
         Why a process: IPOPT's linear solver MUMPS is not thread-safe (Ipopt >= 3.14
@@ -301,23 +301,26 @@ class CourseReplanner:
         in the child (a script without a main guard ran its ride again), and "fork" in
         a process with threads (ROS executors, the engine's inputs) can deadlock. Jobs
         and results travel as length-prefixed pickles over the worker's stdin and stdout.
-        Why one process for all re-solves: a fresh process per re-solve paid the Python
-        and CasADi imports and the model's symbolic build every time (~2-3 s of the
-        4-12 s a warm re-solve took on the Zwift Bologna ride; bench/RESULTS.md,
-        2026-12-02); a process kept keeps them, and the transcriptions of recent node
-        counts (`course_nlp`'s per-process cache).
+        Why one process for all re-solves: a process per re-solve paid the imports and
+        the model's symbolic build every time (~2-3 s of the 4-12 s a warm re-solve took
+        on the Zwift Bologna ride; bench/RESULTS.md, 2026-12-02); a process kept keeps
+        them, and the transcriptions of recent node counts (`course_nlp`'s cache).
         """
         worker = self._worker
         if worker is None or worker.poll() is not None:
-            worker = subprocess.Popen([sys.executable, "-c", _WORKER, str(os.getpid())],
+            worker = subprocess.Popen([sys.executable, "-c", WORKER_PROGRAM, str(os.getpid())],
                                       stdin=subprocess.PIPE, stdout=subprocess.PIPE)
             self._worker = worker
             self.workers_started += 1
+            # `close` sets the flag, then kills the worker it sees: one started as it
+            # closed is killed here (else it ran its whole solve, the node's exit waiting).
+            if self._closed.is_set():
+                worker.kill()
         assert worker.stdin is not None
         assert worker.stdout is not None
         try:
-            _send(worker.stdin, job)
-            reply = _receive(worker.stdout)
+            send(worker.stdin, job)
+            reply = receive(worker.stdout)
         except (OSError, EOFError):
             reply = None
         if reply is None:  # the worker died (or was killed by `close`)
@@ -332,6 +335,7 @@ class CourseReplanner:
 
     def close(self) -> None:
         """Stop now: a solve still running is abandoned (the worker killed)."""
+        self._closed.set()
         worker = self._worker
         if worker is not None:
             if worker.poll() is None:
@@ -342,59 +346,3 @@ class CourseReplanner:
                     pipe.close()
         self._waiter.shutdown(wait=False, cancel_futures=True)
         self._pending = None
-
-
-#: The worker's program. Not `python -m` this module: the package imports it first, and
-#: runpy would run it a second time as `__main__` (with a warning on stderr).
-_WORKER = f"import sys; from {__name__} import _worker_main; _worker_main(int(sys.argv[1]))"
-
-
-def _watch_owner(owner_pid: int) -> None:
-    """Exit within a second of the owner's death (a killed node would otherwise leave
-    the worker solving on, holding the node's stderr)."""
-    while os.getppid() == owner_pid:
-        time.sleep(1.0)
-    os._exit(1)
-
-
-def _send(pipe: IO[bytes], obj: object) -> None:
-    """One frame: the pickle's length (8 bytes, big-endian), then the pickle."""
-    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
-    pipe.write(len(data).to_bytes(8, "big") + data)
-    pipe.flush()
-
-
-def _receive(pipe: IO[bytes]) -> Any:
-    """The next frame's object, None at the end of the stream (the other side closed)."""
-    head = pipe.read(8)
-    if len(head) < 8:
-        return None
-    size = int.from_bytes(head, "big")
-    data = pipe.read(size)
-    if len(data) < size:
-        return None
-    return pickle.loads(data)
-
-
-def _worker_main(owner_pid: int) -> None:
-    """The worker process: pickled jobs on stdin, one reply per job on stdout (the plan
-    and its point, or the error a solve raised: the worker goes on), until stdin ends.
-    It ignores SIGINT (Ctrl-C reaches the whole process group; the owner kills it)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    threading.Thread(target=_watch_owner, args=(owner_pid,), daemon=True).start()
-    # The replies get the stdout pipe to themselves: anything the solver's C code prints
-    # goes to stderr instead.
-    replies = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
-    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
-    lines = LineCache()
-    while (job := _receive(sys.stdin.buffer)) is not None:
-        model, course, rider, conditions, settings, guess, start, warm, line_n = job
-        try:
-            free = free_states(start, start_speed(rider, conditions, settings))
-            reply: tuple[Any, ...] = ("ok", solve_rest(
-                model, course, rider, conditions, settings, guess, start, warm, line_n, free,
-                lines))
-        except Exception as err:  # noqa: BLE001  (reported: the owner raises it from `take`)
-            status = err.status if isinstance(err, SolveError) else "worker_exception"
-            reply = ("error", status, f"{type(err).__name__}: {err}")
-        _send(replies, reply)

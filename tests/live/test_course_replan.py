@@ -13,6 +13,7 @@ from support.courses import hairpin
 
 from itt_planner.errors import SolveError
 from itt_planner.live.course_replan import CourseReplanner, CourseReplanSettings, start_from
+from itt_planner.live.resolve_model import Warm
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import PRESETS
 from itt_planner.model.state import RiderState
@@ -164,6 +165,25 @@ def test_failed_solve_and_dead_worker_are_reported(plan: Plan, planner: HorizonP
         assert rp.workers_started == 2
     finally:
         rp.close()
+
+
+def test_a_worker_started_as_the_replanner_closes_is_killed(plan: Plan,
+                                                             planner: HorizonPlanner) -> None:
+    """`close` racing the first re-solve's worker start (helper R, 2026-12-03: `close` saw
+    no worker yet, the one started next solved its whole course while the node's exit
+    waited): the job's worker is killed at once, a "worker_failed" `SolveError`."""
+    rp = CourseReplanner(COURSE, Conditions(), CourseReplanSettings(min_remaining_m=200.0),
+                         deterministic=False)
+    start = start_from(planner, off_plan_state(plan), S_OFF_M)
+    rp.close()  # before the worker exists: it is started by the job below
+    job = ("3d", COURSE, RIDER, Conditions(), OcpSettings(), plan, start, Warm(), None,
+           ("phi", "delta_n"))
+    t0 = time.monotonic()
+    with pytest.raises(SolveError) as err:
+        rp._solve_in_worker(job)
+    assert err.value.status == "worker_failed"
+    assert time.monotonic() - t0 < 5.0  # not the solve's seconds
+    assert rp.workers_started == 1
 
 
 def _wait(rp: CourseReplanner, timeout_s: float = 120.0) -> Plan:

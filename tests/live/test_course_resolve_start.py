@@ -52,7 +52,7 @@ def in_the_corner(plan: Plan, speed_factor: float) -> tuple[float, RiderState]:
 
 
 def resolve(plan: Plan, planner: HorizonPlanner, s_m: float, state: RiderState) -> Plan:
-    """The worker's solve (`course_replan._worker_main`), in this process."""
+    """The worker's solve (`resolve_worker.worker_main`), in this process."""
     start = start_from(planner, state, s_m)
     launch = start_speed(RIDER, planner.conditions, OcpSettings())
     return solve_plan(COURSE, RIDER, model="3d", guess=plan, start=start,
