@@ -183,8 +183,13 @@ def offset_course(road: Course, n_m: np.ndarray, label: str,
     s_line = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
     # A grid step that ends exactly at the finish (the road's step would cut up to a step).
     steps = max(3, round(s_line[-1] / road.ds_m))
+    # Heading and curvature of the line from the road's and the offset's, per road point:
+    # taken from the polyline resampled onto the line's own grid they alias (the grids
+    # differ by the offset's stretch).
+    theta = np.unwrap(road.theta_rad + alpha)
     course = Course.from_centerline(
         f"{road.name} ({label})", x, y, z, origin=road.origin,
+        theta_rad=theta, kappa_per_m=np.gradient(theta, s_line),
         closed_loop=road.closed_loop, ds_m=s_line[-1] / steps,
         width_left_m=road.width_left_m - n, width_right_m=road.width_right_m + n,
         source=road.source, source_sha256=road.source_sha256, synthetic=road.synthetic,

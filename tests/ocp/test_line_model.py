@@ -105,9 +105,14 @@ def test_plain_1d_rides_the_corner_beyond_the_grip(bend: Course, line_plan: Plan
 def test_on_the_line_of_a_3d_plan_it_is_close_to_the_3d(bend: Course) -> None:
     """The rest of the course from the 3D plan's own state at 200 m, solved on the 3D
     plan's line: rideable by `line_corners`, and a few % slower than the 3D (measured
-    +3.5 %, 23.87 s against 23.06 s): the steady lean of C15 stops the pedalling where
-    the line's lateral acceleration peaks, where the 3D's lean, a state, lags it, and
-    the power rate limit (E6) then slows the ramp back up."""
+    2026-12-03: +7.1 %, 24.70 s against 23.06 s): through the bend it brakes and turns
+    at once within the friction ellipse at the steady lean of C15 (7.5-7.8 m/s^2
+    sideways against the 3D's 9.8, 14.0-14.5 m/s against 16.1-16.6), the steady lean
+    stops the pedalling where the line's lateral acceleration peaks, and the power rate
+    limit (E6) then slows the ramp back up. (+3.5 % on 2026-12-02 was on the line's
+    heading differentiated from its polyline resampled onto its own grid, whose
+    curvature aliased, alternating 0.003 and 0.026 1/m after the bend: on another machine
+    that line's plan rode an artefact, 1.5 to 8 m/s within 3 m, and was invalid.)"""
     plan_3d = solve_plan(bend, RIDER, model="3d")
     assert plan_3d.meta["success"]
     line = offset_course(bend, np.interp(bend.s_m, plan_3d.s_m, plan_3d.n_m), "3d line")
@@ -118,7 +123,7 @@ def test_on_the_line_of_a_3d_plan_it_is_close_to_the_3d(bend: Course) -> None:
                                      start=start)
     assert rest.meta["success"] and point is not None and rest.model == "1dline"
     rest_3d = plan_3d.finish_time_s - float(plan_3d.at("t_s", s0))
-    assert rest_3d * 0.995 < rest.finish_time_s < rest_3d * 1.05
+    assert rest_3d * 0.995 < rest.finish_time_s < rest_3d * 1.09
     fitted, why = line_corners(rest, line, RIDER, Conditions())
     assert why == ""
     assert np.max(np.abs(fitted.ay_mps2)) > 0.8 * GRAVITY_MPS2  # it does corner at grip
