@@ -21,7 +21,12 @@ from itt_planner.ocp import course_restarts
 from itt_planner.ocp.course_budget import Budget
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.course_settings import OcpSettings
-from itt_planner.ocp.course_windows import plan_windows, stitch, window_corners_per_km
+from itt_planner.ocp.course_windows import (
+    plan_windows,
+    stitch,
+    window_corners_per_km,
+    window_iter_cap,
+)
 from itt_planner.ocp.solver import PlanStatus, SolveResult
 from itt_planner.ocp.transcription import Layout
 
@@ -137,6 +142,14 @@ def test_a_window_at_its_iteration_cap_starts_again_with_the_smaller_bound_push(
     assert retry["strategy"] == first["strategy"] + ", smaller bound push"
     assert retry["iterations"] > 5  # the retry is not held to the cap
     assert plan.meta["success"], attempts
+
+
+def test_a_window_may_run_twice_the_iterations_of_the_slowest_one_before_it() -> None:
+    settings = OcpSettings()  # 600 at most, 200 at least, twice the slowest before
+    assert window_iter_cap(settings, []) == 600  # the first window: nothing to go by
+    assert window_iter_cap(settings, [37, 77, 54]) == 200  # Shanghai's window 5
+    assert window_iter_cap(settings, [248, 103]) == 496
+    assert window_iter_cap(settings, [338, 154]) == 600
 
 
 def test_a_window_that_fails_from_the_1d_plan_goes_on_from_the_arc_guess(
