@@ -26,9 +26,9 @@ start may use `_FIRST_SHARE` of it):
   first: on Ardennes that failed in 2 of 4 windows of 15 km, and a window's own run
   costs less than a coarse and a fine one, bench/RESULTS.md, 2026-12-02, H3), then a
   run on the full mesh resumed from their stitched primal-dual point (`course_windows`,
-  why there). A window that gives up early, or still runs at twice the iterations of
-  the slowest window before it (`OcpSettings.window_max_iter`), is restarted with the
-  smaller bound push below; one that still fails, from the other guess (the arc guess
+  why there). A window that gives up early, or still runs at 1.5 times the iterations
+  of the slowest window before it (`OcpSettings.window_max_iter`), is restarted with
+  the smaller bound push below; one that still fails, from the other guess (the arc guess
   or the 1D plan). If the 1D plan or a window does not converge, the coarse mesh first
   or the cold start as without;
 - early failure (`solver.SolveResult.gave_up_early`): the same start with a smaller

@@ -65,10 +65,12 @@ class OcpSettings:
             Ardennes ride's last window with the calibrated rider wandered for 1,063
             iterations (282 s) to `Restoration_Failed` and then converged in 124 with the
             smaller push. Measured with the calibrated riders (bench/RESULTS.md,
-            2026-12-03, helper P): a window converged in at most 1.9x the iterations of
-            the slowest one before it (Shanghai 146 after 77, Ardennes 338 after 248),
-            while Shanghai's window 5 ran to the fixed cap of 600 (104 s CPU) after
-            windows of 37-77 and converged in 154 with the smaller push.
+            2026-12-03, helper P): above 200 a window converged in at most 1.36x the
+            iterations of the slowest one before it (Ardennes 338 after 248; below,
+            Shanghai 146 after 77), while Shanghai's window 5 ran to the fixed cap of 600
+            (104 s CPU) after windows of 37-77 and converged in 154 with the smaller push,
+            and Sauerland's window 9 ran to 600 (156 s) after windows of 91-170 and
+            converged in 109 with it.
     """
 
     h_min_m: float = 1.0
@@ -96,7 +98,7 @@ class OcpSettings:
     window_arc_guess_corners_per_km: float = 4.0
     window_max_iter: int = 600
     window_min_iter: int = 200
-    window_iter_factor: float = 2.0
+    window_iter_factor: float = 1.5
 
     def budget(self, model: str, length_m: float) -> tuple[int, float]:
         """(iterations, seconds) for one solve of `length_m` metres with `model`.
