@@ -26,11 +26,11 @@ start may use `_FIRST_SHARE` of it):
   first: on Ardennes that failed in 2 of 4 windows of 15 km, and a window's own run
   costs less than a coarse and a fine one, bench/RESULTS.md, 2026-12-02, H3), then a
   run on the full mesh resumed from their stitched primal-dual point (`course_windows`,
-  why there). A window that gives up early, or is still running at
-  `OcpSettings.window_max_iter` iterations, is restarted with the smaller bound push
-  below; one that still fails, from the other guess (the arc guess or the 1D plan). If
-  the 1D plan or a window does not converge, the coarse mesh first or the cold start as
-  without;
+  why there). A window that gives up early, or still runs at 1.5 times the iterations
+  of the slowest window before it (`OcpSettings.window_max_iter`), is restarted with
+  the smaller bound push below; one that still fails, from the other guess (the arc guess
+  or the 1D plan). If the 1D plan or a window does not converge, the coarse mesh first
+  or the cold start as without;
 - early failure (`solver.SolveResult.gave_up_early`): the same start with a smaller
   bound push (on short courses the 3D model ended in Restoration_Failed with IPOPT's
   default push and converged in 39-64 iterations with 1e-4);
@@ -63,14 +63,13 @@ start may use `_FIRST_SHARE` of it):
   built for that cap, from the default guess, not from the invalid plan (it rides on
   the artefact); still invalid: the whole mesh at half the spacing (at 20 m the 1D
   plans of bologna and rovereto-like were invalid, 2026-12-01). 3D: the plan's nodes
-  with the slow intervals split (`course_nlp.cut_nodes`), and those whose lateral,
-  heading or roll defect is over its tolerance (`mesh.split_spacing_m`: a re-solve of
-  Ardennes' last 15 km converged with a roll defect 2x its tolerance where the speed
-  rule split nothing, Invalid_Plan), resumed from the plan's primal-dual point moved
-  onto them (`cut_point`), from its primal point if that fails.
-  A mesh built afresh kept 2 of 348 nodes (test hairpin, 600 m straights), the plan
-  on it sat off the active arcs of C11/C15/C16: a rider limited to 4 m/s^2 ended
-  Infeasible_Problem_Detected after 419 iterations (split and resumed: 7; issue 18).
+  with the slow ones split (`course_nlp.cut_nodes`) and those with a lateral, heading
+  or roll defect over tolerance (`mesh.split_spacing_m`: an Ardennes re-solve's roll 2x
+  where the speed rule split nothing), resumed from the plan's primal-dual point moved
+  onto them (`cut_point`), from its primal point if that fails. A mesh built afresh
+  kept 2 of 348 nodes (test hairpin, 600 m straights), the plan on it sat off the
+  active arcs of C11/C15/C16: a rider limited to 4 m/s^2 ended Infeasible_Problem_Detected
+  after 419 iterations (split and resumed: 7; issue 18).
 """
 
 from __future__ import annotations
@@ -103,6 +102,7 @@ from itt_planner.ocp.course_windows import (
     plan_windows,
     stitch,
     window_corners_per_km,
+    window_iter_cap,
     window_start,
 )
 from itt_planner.ocp.guess import plan_spacing_cap
@@ -258,7 +258,8 @@ class CourseSolve:
             label = f"window {k + 1}/{len(wins)} ({nodes[0] / 1e3:.1f}-{nodes[-1] / 1e3:.1f} km"
             # Each window gets an equal share of what is left, one share kept for the polish.
             share = 1.0 / (len(wins) - k + 1)
-            win_nlp, res = self._solve_window(label, base, dense, reserve, start, nodes, share)
+            win_nlp, res = self._solve_window(label, base, dense, reserve, start, nodes, share,
+                                              window_iter_cap(st, [r.iterations for r in runs]))
             if not res.converged:
                 return None
             runs.append(res)
@@ -266,20 +267,20 @@ class CourseSolve:
         return run("polish from the windows", prob, point.w, share=_FIRST_SHARE, resume=point)
 
     def _solve_window(self, label: str, base: Plan, dense: bool, reserve: float,
-                      start: Start | None, nodes: np.ndarray, share: float
+                      start: Start | None, nodes: np.ndarray, share: float, cap: int
                       ) -> tuple[CourseNlp, SolveResult]:
         """One window's runs (`_window_nlp`), `share` of the budget left each: from the
         arc guess if `dense`, else from the 1D plan `base`; after an early failure or at
-        `OcpSettings.window_max_iter` again with the smaller bound push; capped, resumed;
-        still not converged, all that once more from the other guess (the Sauerland ride's
-        window at 77-89 km, calibrated rider, ended Restoration_Failed from the 1D plan
-        with both bound pushes)."""
-        st, run, usable = self.settings, self.budget.run, self.budget.usable
+        `cap` iterations (`course_windows.window_iter_cap`) again with the smaller bound
+        push; capped, resumed; still not converged, all that once more from the other
+        guess (the Sauerland ride's window at 77-89 km, calibrated rider, ended
+        Restoration_Failed from the 1D plan with both bound pushes)."""
+        run, usable = self.budget.run, self.budget.usable
         for arc in (dense, not dense):
             nlp = self._window_nlp(None if arc else base, reserve, start, nodes)
             name = f"{label}{', arc guess' if arc else ''})"
-            res = run(name, nlp, nlp.w_guess, share=share, max_iter=st.window_max_iter)
-            if (res.gave_up_early or res.iterations >= st.window_max_iter) and usable():
+            res = run(name, nlp, nlp.w_guess, share=share, max_iter=cap)
+            if (res.gave_up_early or res.iterations >= cap) and usable():
                 res = run(f"{name}, smaller bound push", nlp, nlp.w_guess,
                           bound_push=_RETRY_BOUND_PUSH, share=share)
             if res.status is PlanStatus.CAPPED and usable():
@@ -347,9 +348,8 @@ class CourseSolve:
                                                       self.check.unresolved_s_m))
             nodes = (self.mesh(cap) if self.model == "1d"
                      else cut_nodes(prob.nodes, self.start_m, 0.0, self.course.s_m, cap))
-            # Any node the plan's speeds add counts: a hard launch on a 41 km course asks
-            # for 10 more of 10,340 (St John's, typical rider; a relative threshold of 0.1 %
-            # once read that as "no finer mesh" and left the plan invalid).
+            # Any node added counts: a hard launch on St John's asked 10 more of 10,340 (a
+            # threshold of 0.1 % read that as "no finer mesh" and left the plan invalid).
             if len(nodes) <= len(prob.nodes):
                 break  # the plan's speeds ask for no finer mesh: the mismatch is not the step
             prob = self.nlp(nodes, self.guess if self.model == "1d" else plan)

@@ -56,11 +56,21 @@ class OcpSettings:
             iterations from it, 468, 511, 173 and 334 from the 1D plan; on open road the
             1D plan was better (Ardennes 39-50 km, 2.0 per km, from the 1D plan's state:
             155 against 192).
-        window_max_iter: a window's first run stops here and starts again with the
-            smaller bound push, as after an early failure: converging windows took 79-343
-            iterations (bench/RESULTS.md, 2026-12-02, helper H3), while the Ardennes ride's
-            last window with the calibrated rider wandered for 1,063 iterations (282 s) to
-            `Restoration_Failed` and then converged in 124 with the smaller push.
+        window_max_iter, window_min_iter, window_iter_factor: a window's first run stops
+            at `window_iter_factor` times the iterations of the slowest window converged
+            before it, at least `window_min_iter`, at most `window_max_iter` (the first
+            window: `window_max_iter`), and starts again with the smaller bound push, as
+            after an early failure (`course_windows.window_iter_cap`). Converging windows
+            took 79-343 iterations (bench/RESULTS.md, 2026-12-02, helper H3), while the
+            Ardennes ride's last window with the calibrated rider wandered for 1,063
+            iterations (282 s) to `Restoration_Failed` and then converged in 124 with the
+            smaller push. Measured with the calibrated riders (bench/RESULTS.md,
+            2026-12-03, helper P): above 200 a window converged in at most 1.36x the
+            iterations of the slowest one before it (Ardennes 338 after 248; below,
+            Shanghai 146 after 77), while Shanghai's window 5 ran to the fixed cap of 600
+            (104 s CPU) after windows of 37-77 and converged in 154 with the smaller push,
+            and Sauerland's window 9 ran to 600 (156 s) after windows of 91-170 and
+            converged in 109 with it.
     """
 
     h_min_m: float = 1.0
@@ -87,6 +97,8 @@ class OcpSettings:
     window_corner_m: float = 150.0
     window_arc_guess_corners_per_km: float = 4.0
     window_max_iter: int = 600
+    window_min_iter: int = 200
+    window_iter_factor: float = 1.5
 
     def budget(self, model: str, length_m: float) -> tuple[int, float]:
         """(iterations, seconds) for one solve of `length_m` metres with `model`.

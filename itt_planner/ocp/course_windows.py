@@ -46,7 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from itt_planner.ocp.course_settings import Start
+from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.plan import Plan
 from itt_planner.ocp.solver import PlanStatus, SolveResult
 from itt_planner.ocp.transcription import Layout
@@ -95,6 +95,17 @@ def window_corners_per_km(nodes: np.ndarray, corners_s_m: np.ndarray) -> float:
     """Corner apices per km of the window spanning `nodes`."""
     inside = np.count_nonzero((corners_s_m >= nodes[0]) & (corners_s_m <= nodes[-1]))
     return 1000.0 * inside / max(float(nodes[-1] - nodes[0]), 1.0)
+
+
+def window_iter_cap(settings: OcpSettings, converged_iters: list[int]) -> int:
+    """Iterations a window's first run may take before it starts again with the smaller
+    bound push (`OcpSettings.window_max_iter`, why there): `window_iter_factor` times the
+    iterations of the slowest window converged before it (`converged_iters`), within
+    `window_min_iter` and `window_max_iter`; the first window `window_max_iter`."""
+    if not converged_iters:
+        return settings.window_max_iter
+    cap = math.ceil(settings.window_iter_factor * max(converged_iters))
+    return int(min(settings.window_max_iter, max(settings.window_min_iter, cap)))
 
 
 def window_start(states: tuple[str, ...], layout: Layout, prev: SolveResult, node: int,

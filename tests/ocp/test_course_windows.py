@@ -21,7 +21,12 @@ from itt_planner.ocp import course_restarts
 from itt_planner.ocp.course_budget import Budget
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.course_settings import OcpSettings
-from itt_planner.ocp.course_windows import plan_windows, stitch, window_corners_per_km
+from itt_planner.ocp.course_windows import (
+    plan_windows,
+    stitch,
+    window_corners_per_km,
+    window_iter_cap,
+)
 from itt_planner.ocp.solver import PlanStatus, SolveResult
 from itt_planner.ocp.transcription import Layout
 
@@ -137,6 +142,16 @@ def test_a_window_at_its_iteration_cap_starts_again_with_the_smaller_bound_push(
     assert retry["strategy"] == first["strategy"] + ", smaller bound push"
     assert retry["iterations"] > 5  # the retry is not held to the cap
     assert plan.meta["success"], attempts
+
+
+def test_a_window_may_run_half_again_the_iterations_of_the_slowest_one_before_it() -> None:
+    settings = OcpSettings()  # 600 at most, 200 at least, 1.5x the slowest before
+    assert window_iter_cap(settings, []) == 600  # the first window: nothing to go by
+    assert window_iter_cap(settings, [37, 77, 54]) == 200  # Shanghai's window 5
+    assert window_iter_cap(settings, [132, 129, 91, 170, 116]) == 255  # Sauerland's 9th
+    assert window_iter_cap(settings, [248, 103, 154, 86]) == 372  # Ardennes's 5th: 338
+    assert window_iter_cap(settings, [338, 248, 154]) == 507
+    assert window_iter_cap(settings, [450]) == 600
 
 
 def test_a_window_that_fails_from_the_1d_plan_goes_on_from_the_arc_guess(
