@@ -132,12 +132,13 @@ class PacingNode(Node):
         except BaseException:
             self.session.close()  # the output log is finished even when start-up fails
             raise
-        self._log().info(
+        self.logger().info(
             f'ready on {self.get_namespace()}: course {config.course}, rider {config.rider},'
             f' plan {self.session.plan.solver_status}, replan every {config.replan_period_s} s')
 
-    def _log(self) -> Any:
-        # rclpy's untyped calls are allowed (pyproject) but not through a subclass.
+    def logger(self) -> Any:
+        """The node's rclpy logger (rclpy's untyped calls are allowed, pyproject, but
+        not through a subclass)."""
         return self.get_logger()  # type: ignore[no-untyped-call]
 
     def _on_input(self, entry: registry.SampleTopic[Any]) -> Any:
@@ -197,10 +198,10 @@ class PacingNode(Node):
         try:
             w_prime = self.session.restore_state(self._state_path)
         except ValueError as err:
-            self._log().warning(f'{err}: starting fresh')
+            self.logger().warning(f'{err}: starting fresh')
             return
         if w_prime is not None:
-            self._log().info(f"resumed from {self._state_path}: W' {w_prime:.0f} J")
+            self.logger().info(f"resumed from {self._state_path}: W' {w_prime:.0f} J")
 
     def save_state(self) -> None:
         """Persist the engine's W' state now (no-op without `state_file`)."""
@@ -210,7 +211,7 @@ class PacingNode(Node):
         try:
             self.session.save_state(self._state_path)
         except OSError as err:
-            self._log().error(f'cannot save state to {self._state_path}: {err}',
+            self.logger().error(f'cannot save state to {self._state_path}: {err}',
                                     throttle_duration_sec=30.0)
 
 
@@ -287,7 +288,7 @@ def _spin_until(node: PacingNode, stop: threading.Event) -> None:
         # Kill a running course re-solve first: a tick waiting for it then returns.
         node.session.engine.close()
         if not node.calls.close(STOP_GRACE_S):
-            node._log().error(f'{node.calls.running} callback(s) still running '
+            node.logger().error(f'{node.calls.running} callback(s) still running '
                               f'{STOP_GRACE_S:.0f} s after the stop; stopping anyway')
         executor.shutdown(timeout_sec=0)
     if errors:
