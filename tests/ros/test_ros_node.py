@@ -27,7 +27,15 @@ from rosbags.highlevel import AnyReader  # noqa: E402
 from rosbags.interfaces import ConnectionExtRosbag2  # noqa: E402
 from sensor_msgs.msg import NavSatFix  # noqa: E402
 from support.mcap_readers import rosbags_messages  # noqa: E402
-from support.ros_support import RIDE_T0_S, RIDER, Proc, Ride, cached_ride, cli  # noqa: E402
+from support.ros_support import (  # noqa: E402
+    RIDE_T0_S,
+    RIDER,
+    Proc,
+    Ride,
+    cached_ride,
+    cli,
+    stop_all,
+)
 
 from itt_msgs_py import serialize, topics  # noqa: E402
 from itt_msgs_py.convert import msg_to_advice, msg_to_diagnostics  # noqa: E402
@@ -294,7 +302,7 @@ def _node_args(ride: Ride, folder: Path, *extra: str) -> list[str]:
                str(folder / "state.json"), "--json", *extra)
 
 
-def test_play_node_record_pipeline_agrees_with_the_embedded_replay(  # noqa: PLR0915
+def test_play_node_record_pipeline_agrees_with_the_embedded_replay(
         tmp_path: Path, tmp_path_factory: pytest.TempPathFactory,
         ros_env: dict[str, str]) -> None:
     # The first 100 s of the ride (~1.4 km, through two corners): played at rate 2 in 50 s.
@@ -322,10 +330,7 @@ def test_play_node_record_pipeline_agrees_with_the_embedded_replay(  # noqa: PLR
         played = json.loads(player.wait(180))
         time.sleep(2.0)
     finally:
-        try:
-            node_out = node.stop()
-        finally:  # a recorder left running records the next tests on its domain
-            record_out = recorder.stop()
+        node_out, record_out = stop_all(node, recorder)
     assert played["refused"] == 0 and played["clock_messages"] > 100
     assert set(played["messages"]) == {"/itt/gps/fix", "/itt/speed", "/itt/power"}
     result = json.loads(node_out)

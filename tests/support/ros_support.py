@@ -145,6 +145,23 @@ class Proc:
 
 
 
+def stop_all(*procs: Proc) -> list[str]:
+    """`Proc.stop` each process in turn, every one even when an earlier one fails (a
+    recorder left running records the next tests on its domain); their stdouts. The
+    first failure is raised once all are stopped."""
+    outs: list[str] = []
+    failure: AssertionError | None = None
+    for proc in procs:
+        try:
+            outs.append(proc.stop())
+        except AssertionError as err:
+            failure = failure or err
+            outs.append("")
+    if failure is not None:
+        raise failure
+    return outs
+
+
 _RIDES: dict[tuple[float, float, float | None], Ride] = {}
 
 
