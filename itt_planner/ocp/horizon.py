@@ -37,8 +37,10 @@ Design choices:
   otherwise made W' < 0 unavoidable in the first interval (seen near the finish).
 - Terminal treatment: the rest of the course is represented by the full-course plan.
   The W' the rider may arrive with at the horizon end is the plan's W' there, shifted
-  by the rider's current deviation from the plan scaled by the share of the remaining
-  distance that lies beyond the horizon - a deficit (or surplus) is paid back (spent)
+  by the rider's current deviation from the plan (carried to the horizon end through
+  E9 along the plan's power, `HorizonWindow.terminal_e_n`: a deviation added as it is
+  could ask for more than full W') scaled by the share of the remaining distance that
+  lies beyond the horizon - a deficit (or surplus) is paid back (spent)
   evenly over what is left of the course, rather than within the next kilometre. It is
   a soft lower bound (slack with a steep penalty, ~45x a realistic W' price), so a W'
   deficit never makes the NLP infeasible, yet W' is not overspent for a seemingly
@@ -249,10 +251,7 @@ class HorizonPlanner:
         bounds = self._window.bounds(nodes, self.initial_state(state, s0))
         x0 = bounds.x0
         end = nodes[-1]
-        e_dev = x0[m.index("e_n")] - float(self.plan.at("e_n", s0))
-        remaining = max(self.course.length_m - s0, 1.0)
-        beyond = (self.course.length_m - end) / remaining
-        e_target = float(self.plan.at("e_n", end)) + e_dev * beyond
+        e_target = self._window.terminal_e_n(nodes, float(x0[m.index("e_n")]))
         terminal = np.array([e_target, float(self.plan.at("v_mps", end)), st.v_weight,
                              float(self.plan.at("costate_v_s_per_mps", end))])
         p = tr.params(road_data(self.course, nodes), self._par, terminal)

@@ -17,6 +17,7 @@ from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.model.dynamics import SpatialModel
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
+from itt_planner.model.wprime import e_n_rate
 from itt_planner.ocp.bounds import U_W_MAX, V_MIN_MPS, Bounds, simple_bounds, speed_limit_mps
 from itt_planner.ocp.guess import PLAN_ARRAYS, plan_spacing_cap
 from itt_planner.ocp.horizon_settings import HorizonSettings
@@ -140,6 +141,37 @@ class HorizonWindow:
             x[i] = np.clip(x[i] + fade * (x0[i] - x[i, 0]), x_lo[i], x_hi[i])
         x[:, 0] = x0
         return x
+
+    def terminal_e_n(self, nodes: np.ndarray, e0: float) -> float:
+        """The W' (as E_n) the window should end with: its soft terminal target.
+
+        The rider's deviation from the plan's W' is carried to the window's end through
+        E9 along the plan's power and time (what riding the plan from here would leave,
+        against what it leaves the plan), and the share of the remaining course beyond
+        the window is kept (`horizon` module docstring, "Terminal treatment"). Why through
+        E9 rather than added as it is: recovery below CP slows as W' fills (Skiba), so a
+        rider with W' left over a plan that emptied it recovers less over a descent than
+        the plan does. Added as it is, the target was unreachable: on the Sauerland ride
+        (km 9, the rider 59 % full where a re-solved plan had emptied W' on the climb) it
+        was 1.06, above full, and 35 of the ride's first 45 failed replans were such
+        windows (bench/RESULTS.md, 2026-12-03). Carried through E9, riding the plan's
+        power reaches it.
+        """
+        plan, r = self.plan, self.rider
+        s0, end = float(nodes[0]), float(nodes[-1])
+        s = np.concatenate([[s0], plan.s_m[(plan.s_m > s0) & (plan.s_m < end)], [end]])
+        dt = np.diff(plan.at("t_s", s))
+        p_plus = np.maximum(plan.at("power_w", 0.5 * (s[1:] + s[:-1])), 0.0)
+
+        def ride(e: float) -> float:
+            for p, h in zip(p_plus.tolist(), dt.tolist(), strict=True):
+                rate = float(e_n_rate(e, p, r.critical_power_w, r.w_prime_j))
+                e = min(max(e + rate * h, 0.0), 1.0)
+            return e
+
+        deviation = ride(e0) - ride(float(plan.at("e_n", s0)))
+        beyond = (self.course.length_m - end) / max(self.course.length_m - s0, 1.0)
+        return float(np.clip(float(plan.at("e_n", end)) + deviation * beyond, 0.0, 1.0))
 
     def bounds(self, nodes: np.ndarray, x0: np.ndarray) -> Bounds:
         """The simple bounds (`bounds.simple_bounds`) over the window, the speed capped by
