@@ -49,7 +49,7 @@ def ridden_plan(window: HorizonWindow, nodes: np.ndarray, e0: float) -> float:
 
 
 def beyond(nodes: np.ndarray) -> float:
-    return (COURSE.length_m - nodes[-1]) / (COURSE.length_m - nodes[0])
+    return float((COURSE.length_m - nodes[-1]) / (COURSE.length_m - nodes[0]))
 
 
 @settings(max_examples=30, deadline=None)
