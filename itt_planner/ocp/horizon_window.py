@@ -106,9 +106,9 @@ class HorizonWindow:
         return x0
 
     def _plan_delta_n(self, nodes: np.ndarray) -> np.ndarray:
-        if self.plan.model == "3d":
+        if self.plan.model != "1d":  # 3D, or the line's steady turn (`line_plan.onto_road`)
             return self.plan.at("delta_n", nodes)
-        # A 1D plan: the steering of the steady turn along the centre line.
+        # A plain 1D plan: the steering of the steady turn along the centre line.
         kappa = self.course.at("kappa_per_m", nodes)
         return np.arctan(self.rider.wheelbase_m * kappa) / self.rider.steer_max_rad
 
@@ -126,16 +126,17 @@ class HorizonWindow:
                x_hi: np.ndarray) -> np.ndarray:
         """A start from the plan (`plan_guess`, states `x`) re-anchored at the rider's `x0`.
 
-        W' shifted by the rider's deficit (or surplus) over the whole window; the line
-        and the speed by the rider's offsets, fading out over `_REJOIN_M`, within the
-        bounds `x_lo`, `x_hi`. Why: with only the first node moved, a rider ridden 5.4 m
+        W' from the rider's, riding the plan's power (`_ridden_e_n`: what the terminal
+        target asks for, `terminal_e_n`); the line and the speed by the rider's offsets,
+        fading out over `_REJOIN_M`, within the bounds `x_lo`, `x_hi`. Why: with only
+        the first node moved, a rider ridden 5.4 m
         across the road from the plan's line (a recorded ride of an older plan's line)
         started IPOPT from a 5.4 m jump in a 3 m interval, and the cold replans hit the
         iteration cap (verona-like replay, 14.4 km).
         """
         m, x = self.model, x.copy()
         ie = m.index("e_n")
-        x[ie] = np.clip(x[ie] - (x[ie, 0] - x0[ie]), 0.0, 1.0)
+        x[ie] = self._ridden_e_n(nodes, float(x0[ie]))
         fade = np.clip(1.0 - (nodes - nodes[0]) / _REJOIN_M, 0.0, 1.0)
         for i in (m.index("n"), m.index("v")):
             x[i] = np.clip(x[i] + fade * (x0[i] - x[i, 0]), x_lo[i], x_hi[i])
@@ -146,9 +147,9 @@ class HorizonWindow:
         """The W' (as E_n) the window should end with: its soft terminal target.
 
         The rider's deviation from the plan's W' is carried to the window's end through
-        E9 along the plan's power and time (what riding the plan from here would leave,
-        against what it leaves the plan), and the share of the remaining course beyond
-        the window is kept (`horizon` module docstring, "Terminal treatment"). Why through
+        E9 along the plan's power and time (`_ridden_e_n` from the rider's W', against
+        the same from the plan's), and the share of the remaining course beyond the
+        window is kept (`horizon` module docstring, "Terminal treatment"). Why through
         E9 rather than added as it is: recovery below CP slows as W' fills (Skiba), so a
         rider with W' left over a plan that emptied it recovers less over a descent than
         the plan does. Added as it is, the target was unreachable: on the Sauerland ride
@@ -157,21 +158,28 @@ class HorizonWindow:
         windows (bench/RESULTS.md, 2026-12-03). Carried through E9, riding the plan's
         power reaches it.
         """
-        plan, r = self.plan, self.rider
         s0, end = float(nodes[0]), float(nodes[-1])
-        s = np.concatenate([[s0], plan.s_m[(plan.s_m > s0) & (plan.s_m < end)], [end]])
-        dt = np.diff(plan.at("t_s", s))
-        p_plus = np.maximum(plan.at("power_w", 0.5 * (s[1:] + s[:-1])), 0.0)
-
-        def ride(e: float) -> float:
-            for p, h in zip(p_plus.tolist(), dt.tolist(), strict=True):
-                rate = float(e_n_rate(e, p, r.critical_power_w, r.w_prime_j))
-                e = min(max(e + rate * h, 0.0), 1.0)
-            return e
-
-        deviation = ride(e0) - ride(float(plan.at("e_n", s0)))
+        ends = np.array([s0, end])
+        deviation = (self._ridden_e_n(ends, e0)[-1]
+                     - self._ridden_e_n(ends, float(self.plan.at("e_n", s0)))[-1])
         beyond = (self.course.length_m - end) / max(self.course.length_m - s0, 1.0)
-        return float(np.clip(float(plan.at("e_n", end)) + deviation * beyond, 0.0, 1.0))
+        return float(np.clip(float(self.plan.at("e_n", end)) + deviation * beyond, 0.0, 1.0))
+
+    def _ridden_e_n(self, s_m: np.ndarray, e0: float) -> np.ndarray:
+        """E_n at the increasing `s_m` for a rider with `e0` at `s_m[0]` who rides the
+        plan's power at the plan's pace (E9, Euler steps on the plan's own intervals:
+        ~1 s, over which W' changes by < 1 %)."""
+        plan, r = self.plan, self.rider
+        inside = plan.s_m[(plan.s_m > s_m[0]) & (plan.s_m < s_m[-1])]
+        grid = np.unique(np.concatenate([s_m, inside]))
+        dt = np.diff(plan.at("t_s", grid))
+        p_plus = np.maximum(plan.at("power_w", 0.5 * (grid[1:] + grid[:-1])), 0.0)
+        e = np.empty(len(grid))
+        e[0] = e0
+        for k, (p, h) in enumerate(zip(p_plus.tolist(), dt.tolist(), strict=True)):
+            rate = float(e_n_rate(e[k], p, r.critical_power_w, r.w_prime_j))
+            e[k + 1] = min(max(e[k] + rate * h, 0.0), 1.0)
+        return np.asarray(np.interp(s_m, grid, e))
 
     def bounds(self, nodes: np.ndarray, x0: np.ndarray) -> Bounds:
         """The simple bounds (`bounds.simple_bounds`) over the window, the speed capped by
