@@ -1,5 +1,6 @@
 """The horizon's soft terminal W' target (`HorizonWindow.terminal_e_n`): the rider's
-deviation from the plan carried to the window's end through E9, never above full W'.
+deviation from the plan carried to the window's end through E9, never above full W'; and
+a cold start's W' (`HorizonWindow.anchor`) ridden the same way.
 
 The plan here recovers W' at a steady power below CP from empty, so E9 (Skiba) has a
 closed form: `1 - E_n` decays as `exp(-(CP - P) t / W')`. Riding that plan's power from
@@ -77,3 +78,21 @@ def test_a_surplus_over_an_empty_plan_asks_for_no_more_than_riding_the_plan_leav
     target = window.terminal_e_n(nodes, 0.9)
     assert added > 1.0
     assert plan_end < target <= ridden_plan(window, nodes, 0.9) + 2e-3
+
+
+def test_a_cold_start_rides_the_plans_power_from_the_riders_w_prime(
+        window: HorizonWindow) -> None:
+    """The start from the plan, re-anchored at a rider with W' to spare, recovers as E9
+    does from there (what the terminal target asks for), not the plan's recovery shifted:
+    shifted, it ran above full W' and was no start of the NLP (on the Sauerland ride's
+    km-33 windows, 15 of 35 cold replans failed; bench/RESULTS.md, 2026-12-03)."""
+    nodes = window.nodes(100.0)
+    x, _ = window.plan_guess(nodes)
+    ie = window.model.index("e_n")
+    x0 = x[:, 0].copy()
+    x0[ie] = 0.9
+    lo, hi = np.full_like(x, -np.inf), np.full_like(x, np.inf)
+    anchored = window.anchor(nodes, x, x0, lo, hi)[ie]
+    expected = [ridden_plan(window, nodes[: k + 1], 0.9) for k in range(len(nodes))]
+    assert anchored == pytest.approx(expected, abs=2e-3)
+    assert window.terminal_e_n(nodes, 0.9) <= anchored[-1] + 1e-9

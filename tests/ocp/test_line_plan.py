@@ -12,9 +12,12 @@ import pytest
 from itt_planner.course.builder import build_course
 from itt_planner.course.geometry import Course
 from itt_planner.course.racing_line import line_course, shortest_line
-from itt_planner.model.conditions import GRAVITY_MPS2
+from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
+from itt_planner.model.dynamics import build_3d_steady_lean
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.horizon_settings import HorizonSettings
+from itt_planner.ocp.horizon_window import HorizonWindow
 from itt_planner.ocp.line_plan import solve_plan_on_line
 
 MARGIN_M = 0.5
@@ -107,3 +110,20 @@ def test_plan_on_the_line_that_knows_its_corners() -> None:
     assert np.all(plan.w_n[lean > rider.pedal_lean_max_rad] <= 0.02)
     bend = (plan.s_m > STRAIGHT_M + 10) & (plan.s_m < STRAIGHT_M + math.pi * RADIUS_M - 10)
     assert np.all(plan.delta_n[bend] > 0)  # steering left round the left bend
+
+
+def test_a_horizon_from_the_line_plan_steers_along_the_line() -> None:
+    """A receding horizon over a "1dline" plan starts from the plan's steady turn on the
+    line (as a 3D re-solve does, `guess.plan_guess`), not from the centre line's: round
+    the U-turn the line is tighter than the 30 m centre line."""
+    course = _u_turn(grade_pct=1.0)
+    rider = Rider()
+    plan = solve_plan_on_line(course, rider, corners=True)
+    window = HorizonWindow(build_3d_steady_lean(), course, rider, plan, Conditions(),
+                           HorizonSettings(horizon_m=400.0))
+    nodes = window.nodes(STRAIGHT_M - 100.0)
+    x, _ = window.plan_guess(nodes)
+    steering = x[window.model.index("delta_n")]
+    assert steering == pytest.approx(plan.at("delta_n", nodes))
+    centre = np.arctan(rider.wheelbase_m / RADIUS_M) / rider.steer_max_rad
+    assert np.max(steering) > 1.05 * centre
