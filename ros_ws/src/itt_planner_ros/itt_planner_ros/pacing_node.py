@@ -118,6 +118,9 @@ class PacingNode(Node):
         self._last_save = time.monotonic()
         try:
             self._resume()
+            # Now, not on the first advice: that tick holds the output log's lock, which
+            # the input callbacks wait for (`registry.prepare_codecs`).
+            registry.prepare_codecs()
             for entry in registry.SAMPLE_TOPICS:
                 topic = entry.topic
                 self.create_subscription(message_class(topic.msgtype), topic.key,
