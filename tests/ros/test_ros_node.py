@@ -201,6 +201,49 @@ def test_node_turns_inputs_into_advice_and_survives_malformed_payloads(  # noqa:
         [_decode(m, topics.ADVICE).header.stamp for m in got["advice"]]
 
 
+@pytest.mark.usefixtures("ros_default_context")
+def test_inputs_that_queue_while_the_node_is_held_up_are_all_taken(
+        ride: Ride, tmp_path: Path) -> None:
+    """Inputs sent while the node's callbacks are held up (here: not spun at all) are
+    taken once it runs again, up to `INPUT_DEPTH` per topic. With the sensor profile's
+    depth of 5, a node held up at the start of a rate-2 replay lost its first inputs."""
+    from itt_planner_ros.pacing_node import INPUT_DEPTH, PacingNode
+
+    node = PacingNode(parameter_overrides=[
+        Parameter("course", value=str(ride.course)), Parameter("plan", value=str(ride.plan)),
+        Parameter("rider", value=RIDER),
+        Parameter("output_log", value=str(tmp_path / "node.mcap"))])
+    feeder = rclpy.create_node("feeder", namespace="/itt")
+    pubs = {t.key: feeder.create_publisher(message_class(t.msgtype), t.key, qos_profile(t.qos))
+            for t in INPUT_TOPICS}
+    subs = [s for s in node.subscriptions if s.topic_name.startswith("/itt/")]
+    spinner = None
+    try:
+        # Matched on both sides, so that nothing is lost to discovery.
+        assert _wait(lambda: all(p.get_subscription_count() for p in pubs.values()) and
+                     all(s.get_publisher_count() for s in subs), 10)
+        sent: dict[str, int] = dict.fromkeys(pubs, 0)
+        for _topic, stamp, sample in read_ride_log(ride.log):
+            if stamp > RIDE_T0_S + 10:  # 10 fixes, 40 speeds and 40 power readings
+                break
+            assert is_sample(sample)
+            topic, msg = sample_to_msg(sample)
+            pubs[topic.key].publish(serialize(msg))
+            sent[topic.key] += 1
+        assert 5 < max(sent.values()) <= INPUT_DEPTH
+        written = node.session.sinks.writer
+        assert written is not None
+        spinner = Spinner(node)
+        _wait(lambda: all(written.counts[f"/itt/{k}"] >= n for k, n in sent.items()), 30)
+    finally:
+        if spinner is not None:
+            spinner.stop()
+        node.session.close()
+        node.destroy_node()  # type: ignore[no-untyped-call]
+        feeder.destroy_node()
+    assert {k: written.counts[f"/itt/{k}"] for k in sent} == sent
+
+
 def _decode(data: bytes, topic: topics.Topic) -> Any:
     from itt_msgs_py import deserialize
 
