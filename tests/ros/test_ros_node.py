@@ -345,6 +345,29 @@ def _node_args(ride: Ride, folder: Path, *extra: str) -> list[str]:
                str(folder / "state.json"), "--json", *extra)
 
 
+def _inputs_lost(node_log: Path, ride_log: Path) -> dict[str, list[float]]:
+    """Per input topic, the ride times (s) of the played messages that are not in the
+    node's own log (the inputs it decoded) though a message before them is; topics
+    without such a loss are left out. A loss before the node's first message on a topic
+    is the player's start: its wait cannot see the node's side of the matching (6 of 46
+    and, after the node's fixes, 3 of 32 runs at load ~10 lost their first messages, up
+    to 4 fixes, 2026-12-03; `play --delay`)."""
+    def stamps(log: Path) -> dict[str, list[float]]:
+        out: dict[str, list[float]] = {}
+        for topic, _, sample in read_ride_log(log):
+            if is_sample(sample):
+                out.setdefault(topic, []).append(round(sample.stamp_s - RIDE_T0_S, 3))
+        return out
+
+    decoded, lost = stamps(node_log), {}
+    for topic, times in stamps(ride_log).items():
+        got = set(decoded.get(topic, ()))
+        first = min(got, default=-math.inf)
+        if missing := [t for t in times if t > first and t not in got]:
+            lost[topic] = missing
+    return lost
+
+
 def test_play_node_record_pipeline_agrees_with_the_embedded_replay(
         tmp_path: Path, tmp_path_factory: pytest.TempPathFactory,
         ros_env: dict[str, str]) -> None:
@@ -353,8 +376,8 @@ def test_play_node_record_pipeline_agrees_with_the_embedded_replay(
     truth = Plan.load(ride.plan)
     ridden_m = float(np.interp(ride.duration_s, truth.t_s, truth.s_m))
     env = ros_env
-    # The node's own log (inputs as decoded, advice out) is kept for a post-mortem: a
-    # loaded run advised first at stamp 5 s, not 0, then lost 4 GPS fixes as outliers.
+    # The node's own log: the inputs it decoded (checked against those played below) and
+    # its advice, kept for a post-mortem.
     params = _params(tmp_path, plan=str(ride.plan), deterministic=True,
                      output_log=str(tmp_path / "node.mcap"))
     node = Proc(_node_args(ride, tmp_path, "--use-sim-time", "--params-file", str(params)),
@@ -378,6 +401,10 @@ def test_play_node_record_pipeline_agrees_with_the_embedded_replay(
     assert set(played["messages"]) == {"/itt/gps/fix", "/itt/speed", "/itt/power"}
     result = json.loads(node_out)
     assert result["malformed"] == {} and json.loads(record_out)["recorded"] > 0
+    # Every played input from the node's first on reached it. A node held up at the start
+    # of the ride (its first advice generated CDR code holding its log's lock) lost inputs
+    # from a queue of 5, which showed only later, if at all (helper R4, 2026-12-03).
+    assert _inputs_lost(tmp_path / "node.mcap", ride.log) == {}
 
     # Every recorded message decodes with rosbags to the type its channel declares.
     info, msgs = rosbags_messages(tmp_path / "out.mcap")
