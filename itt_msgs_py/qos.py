@@ -11,6 +11,7 @@ rosbag2 read it back.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import cache
 from io import StringIO
 
 from rosbags.interfaces import (
@@ -48,8 +49,10 @@ def to_rosbags(qos: QoS) -> Qos:
     )
 
 
+@cache
 def offered_qos_yaml(*profiles: QoS) -> str:
-    """The `offered_qos_profiles` value for a topic whose publishers offered `profiles`."""
+    """The `offered_qos_profiles` value for a topic whose publishers offered `profiles`
+    (kept: a log writer asks for the same few profiles, and ruamel takes 50 ms each)."""
     return qos_yaml([to_rosbags(q) for q in profiles])
 
 

@@ -24,7 +24,8 @@ from typing import Any, Generic, TypeGuard, TypeVar
 import numpy as np
 
 from itt_msgs_py.convert import BASE_FRAME, GPS_FRAME, from_time, header, output_to_core
-from itt_msgs_py.definitions import typestore
+from itt_msgs_py.definitions import msgdef, typestore
+from itt_msgs_py.qos import offered_qos_yaml
 from itt_msgs_py.topics import (
     DEFAULT_NAMESPACE,
     OUTPUT_TOPICS,
@@ -130,6 +131,23 @@ _BY_KEY: dict[str, SampleTopic[Any]] = {e.topic.key: e for e in SAMPLE_TOPICS}
 def topics_by_name(namespace: str = DEFAULT_NAMESPACE) -> dict[str, Topic]:
     """Map each fully qualified topic name in `namespace` to its `Topic`."""
     return {t.name(namespace): t for t in TOPICS}
+
+
+def prepare_codecs(topics: tuple[Topic, ...] = TOPICS) -> None:
+    """Do now, once, what the first message of each topic would otherwise do: generate
+    its type's CDR code (rosbags compiles a type's (de)serializer on first use), its
+    `ros2msg` schema text and its offered-QoS YAML (what a log's channel carries).
+
+    For the interface's types that first use cost 0.7 s on a quiet machine and seconds
+    under load. The pacing node paid it on its first advice, holding its output log's
+    lock, and meanwhile its input callbacks waited on that lock: the best-effort
+    inputs beyond the subscriptions' depth were lost (bench/RESULTS.md, 2026-12-03,
+    helper R4). A node calls this before it says it is ready.
+    """
+    for topic in topics:
+        typestore.get_msgdef(topic.msgtype)
+        msgdef(topic.msgtype)
+        offered_qos_yaml(topic.qos)
 
 
 def is_sample(value: object) -> TypeGuard[Sample]:

@@ -108,6 +108,10 @@ def play_cli(
     wait_for_matched_s: float = typer.Option(
         0.0, "--wait-for-matched",
         help="Wait up to s for subscribers of the input topics (and of /clock with --clock)."),
+    delay_s: float = typer.Option(
+        0.0, "--delay", "-d", min=0.0,
+        help="Then hold the first message back s (ros2 bag play --delay; /clock holds the "
+             "start time): for subscribers that match late, which the wait cannot see."),
     namespace: str = typer.Option("/itt", "--namespace", help="Namespace of the log's topics."),
     as_json: bool = JSON_OPTION,
 ) -> None:
@@ -119,7 +123,8 @@ def play_cli(
 
         settings = PlaySettings(rate=rate, loop=loop, clock_hz=clock_hz if clock else 0.0,
                                 start_offset_s=start_offset_s, topics=tuple(topic),
-                                wait_for_matched_s=wait_for_matched_s, namespace=namespace)
+                                wait_for_matched_s=wait_for_matched_s, delay_s=delay_s,
+                                namespace=namespace)
         stats = play(log, settings, _stop_on_signals())
     result = {"log": str(log), **stats.as_dict()}
     emit(result, as_json, lambda r: f"published {r['published']} messages from {r['log']}")

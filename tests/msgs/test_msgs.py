@@ -82,6 +82,23 @@ def test_the_registry_has_one_entry_per_input_topic() -> None:
         registry.sample_to_msg(make_advice())  # type: ignore[arg-type]
 
 
+def test_prepare_codecs_does_each_topics_first_use_work_up_front() -> None:
+    """Code, schema and offered QoS of every interface topic exist after `prepare_codecs`,
+    so no message's first use generates them (the node's first advice did, holding up its
+    inputs)."""
+    from itt_msgs_py.definitions import typestore
+    from itt_msgs_py.qos import offered_qos_yaml
+
+    for topic in registry.TOPICS:  # as in a fresh process
+        typestore.cache.pop(topic.msgtype, None)
+    msgdef.cache_clear()
+    offered_qos_yaml.cache_clear()
+    registry.prepare_codecs()
+    assert {t.msgtype for t in registry.TOPICS} <= set(typestore.cache)
+    assert msgdef.cache_info().currsize >= len({t.msgtype for t in registry.TOPICS})
+    assert offered_qos_yaml.cache_info().currsize == len({t.qos for t in registry.TOPICS})
+
+
 def _roundtrip(msg: Any) -> Any:
     """The message through CDR bytes and back (a rosbags message object)."""
     data = itt_msgs_py.serialize(msg)

@@ -201,6 +201,49 @@ def test_node_turns_inputs_into_advice_and_survives_malformed_payloads(  # noqa:
         [_decode(m, topics.ADVICE).header.stamp for m in got["advice"]]
 
 
+@pytest.mark.usefixtures("ros_default_context")
+def test_inputs_that_queue_while_the_node_is_held_up_are_all_taken(
+        ride: Ride, tmp_path: Path) -> None:
+    """Inputs sent while the node's callbacks are held up (here: not spun at all) are
+    taken once it runs again, up to `INPUT_DEPTH` per topic. With the sensor profile's
+    depth of 5, a node held up at the start of a rate-2 replay lost its first inputs."""
+    from itt_planner_ros.pacing_node import INPUT_DEPTH, PacingNode
+
+    node = PacingNode(parameter_overrides=[
+        Parameter("course", value=str(ride.course)), Parameter("plan", value=str(ride.plan)),
+        Parameter("rider", value=RIDER),
+        Parameter("output_log", value=str(tmp_path / "node.mcap"))])
+    feeder = rclpy.create_node("feeder", namespace="/itt")
+    pubs = {t.key: feeder.create_publisher(message_class(t.msgtype), t.key, qos_profile(t.qos))
+            for t in INPUT_TOPICS}
+    subs = [s for s in node.subscriptions if s.topic_name.startswith("/itt/")]
+    spinner = None
+    try:
+        # Matched on both sides, so that nothing is lost to discovery.
+        assert _wait(lambda: all(p.get_subscription_count() for p in pubs.values()) and
+                     all(s.get_publisher_count() for s in subs), 10)
+        sent: dict[str, int] = dict.fromkeys(pubs, 0)
+        for _topic, stamp, sample in read_ride_log(ride.log):
+            if stamp > RIDE_T0_S + 10:  # 10 fixes, 40 speeds and 40 power readings
+                break
+            assert is_sample(sample)
+            topic, msg = sample_to_msg(sample)
+            pubs[topic.key].publish(serialize(msg))
+            sent[topic.key] += 1
+        assert 5 < max(sent.values()) <= INPUT_DEPTH
+        written = node.session.sinks.writer
+        assert written is not None
+        spinner = Spinner(node)
+        _wait(lambda: all(written.counts[f"/itt/{k}"] >= n for k, n in sent.items()), 30)
+    finally:
+        if spinner is not None:
+            spinner.stop()
+        node.session.close()
+        node.destroy_node()  # type: ignore[no-untyped-call]
+        feeder.destroy_node()
+    assert {k: written.counts[f"/itt/{k}"] for k in sent} == sent
+
+
 def _decode(data: bytes, topic: topics.Topic) -> Any:
     from itt_msgs_py import deserialize
 
@@ -302,6 +345,29 @@ def _node_args(ride: Ride, folder: Path, *extra: str) -> list[str]:
                str(folder / "state.json"), "--json", *extra)
 
 
+def _inputs_lost(node_log: Path, ride_log: Path) -> dict[str, list[float]]:
+    """Per input topic, the ride times (s) of the played messages that are not in the
+    node's own log (the inputs it decoded) though a message before them is; topics
+    without such a loss are left out. A loss before the node's first message on a topic
+    is the player's start: its wait cannot see the node's side of the matching (6 of 46
+    and, after the node's fixes, 3 of 32 runs at load ~10 lost their first messages, up
+    to 4 fixes, 2026-12-03; `play --delay`)."""
+    def stamps(log: Path) -> dict[str, list[float]]:
+        out: dict[str, list[float]] = {}
+        for topic, _, sample in read_ride_log(log):
+            if is_sample(sample):
+                out.setdefault(topic, []).append(round(sample.stamp_s - RIDE_T0_S, 3))
+        return out
+
+    decoded, lost = stamps(node_log), {}
+    for topic, times in stamps(ride_log).items():
+        got = set(decoded.get(topic, ()))
+        first = min(got, default=-math.inf)
+        if missing := [t for t in times if t > first and t not in got]:
+            lost[topic] = missing
+    return lost
+
+
 def test_play_node_record_pipeline_agrees_with_the_embedded_replay(
         tmp_path: Path, tmp_path_factory: pytest.TempPathFactory,
         ros_env: dict[str, str]) -> None:
@@ -310,8 +376,8 @@ def test_play_node_record_pipeline_agrees_with_the_embedded_replay(
     truth = Plan.load(ride.plan)
     ridden_m = float(np.interp(ride.duration_s, truth.t_s, truth.s_m))
     env = ros_env
-    # The node's own log (inputs as decoded, advice out) is kept for a post-mortem: a
-    # loaded run advised first at stamp 5 s, not 0, then lost 4 GPS fixes as outliers.
+    # The node's own log: the inputs it decoded (checked against those played below) and
+    # its advice, kept for a post-mortem.
     params = _params(tmp_path, plan=str(ride.plan), deterministic=True,
                      output_log=str(tmp_path / "node.mcap"))
     node = Proc(_node_args(ride, tmp_path, "--use-sim-time", "--params-file", str(params)),
@@ -335,6 +401,10 @@ def test_play_node_record_pipeline_agrees_with_the_embedded_replay(
     assert set(played["messages"]) == {"/itt/gps/fix", "/itt/speed", "/itt/power"}
     result = json.loads(node_out)
     assert result["malformed"] == {} and json.loads(record_out)["recorded"] > 0
+    # Every played input from the node's first on reached it. A node held up at the start
+    # of the ride (its first advice generated CDR code holding its log's lock) lost inputs
+    # from a queue of 5, which showed only later, if at all (helper R4, 2026-12-03).
+    assert _inputs_lost(tmp_path / "node.mcap", ride.log) == {}
 
     # Every recorded message decodes with rosbags to the type its channel declares.
     info, msgs = rosbags_messages(tmp_path / "out.mcap")

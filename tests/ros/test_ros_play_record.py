@@ -38,6 +38,7 @@ from support.mcap_readers import check_all_readers, raw_counts, rosbags_messages
 
 from itt_msgs_py import topics  # noqa: E402
 from itt_msgs_py.qos import OFFERED_QOS_KEY, offered_qos_yaml  # noqa: E402
+from itt_planner.errors import RideLogError  # noqa: E402
 from itt_planner.logs.ridelog import RideLogReader, message_count  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -236,6 +237,42 @@ def test_play_topics_offset_and_stop() -> None:
     assert stats.messages == Counter({"/itt/gps/fix": expected})
     assert received_from_offset == expected
     assert stopped_after_s < 3.0 and looped.loops == 0 and looped.messages.total() <= 1
+
+
+@pytest.mark.usefixtures("ros_env")
+def test_play_delay_holds_all_but_the_start_clock() -> None:
+    """During `delay_s` only `/clock` goes out, at the start time (the log's first time plus
+    the offset); a stop then ends the play before any message. A negative delay is refused."""
+    from rosgraph_msgs.msg import Clock
+
+    with pytest.raises(RideLogError, match="delay must be >= 0"):
+        play(DEMO_BAG, PlaySettings(delay_s=-1.0))
+    first = next(RideLogReader(DEMO_BAG).records()).log_time_ns
+    clocks: list[int] = []
+    stop = threading.Event()
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        with edge_node("listener", context) as node:
+            def on_clock(msg: Any) -> None:
+                clocks.append(msg.clock.sec * 10**9 + msg.clock.nanosec)
+                if len(clocks) >= 5:
+                    stop.set()
+
+            node.create_subscription(Clock, "/clock", on_clock, QoSProfile(
+                depth=100, reliability=ReliabilityPolicy.BEST_EFFORT))
+            executor = SingleThreadedExecutor(context=context)
+            executor.add_node(node)
+            threading.Thread(target=executor.spin, daemon=True).start()
+            threading.Timer(60.0, stop.set).start()  # a safety net, not a bound
+            # In this context, so no discovery: the listener matches as the player starts.
+            stats = play(DEMO_BAG, PlaySettings(rate=RATE, clock_hz=40.0, start_offset_s=1300,
+                                                delay_s=3600.0), stop, context=context)
+            executor.shutdown()
+    finally:
+        context.try_shutdown()
+    assert len(clocks) >= 5 and set(clocks) == {first + 1300 * 10**9}
+    assert stats.messages.total() == 0 and stats.clock_messages >= 5
 
 
 def test_qos_round_trip_as_rosbag2() -> None:

@@ -15,8 +15,9 @@
 """The pacing node: ROS 2 topics in and out of an `itt_planner.session.ride_session.RideSession`.
 
 Only ROS conversion lives here. One subscription per entry of the sample registry
-(`itt_msgs_py.registry`: `gps/fix`, `speed`, `power`) takes CDR bytes and decodes them
-with the entry's converter (so a malformed payload is counted, not fatal);
+(`itt_msgs_py.registry`: `gps/fix`, `speed`, `power`) takes CDR bytes, queued up to
+`INPUT_DEPTH` deep, and decodes them with the entry's converter (so a malformed payload
+is counted, not fatal);
 a timer in its own mutually exclusive callback group runs the session's tick, so a long
 solve never blocks the inputs; advice goes out as `target_power`, `target_line`
 (nav_msgs/Path, frame `map`), `advice` and `/diagnostics`, serialized by `itt_msgs_py`
@@ -30,7 +31,7 @@ from __future__ import annotations
 import signal
 import threading
 import time
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -56,6 +57,12 @@ NODE_NAME = 'itt_pacing'
 #: Parameters of the node itself; the session's come from `SessionConfig`.
 NODE_PARAMS = {'tick_period_s': 0.1, 'rerun_sink': '', 'output_log': '',
                'state_file': '', 'state_period_s': 2.0}
+#: History depth of the input subscriptions: what may queue while the node's callbacks
+#: are held up (a tick, a loaded machine). The sensor profile's 5 held 0.6 s of a rate-2
+#: replay's speed and power, and a node held up longer at the start of a ride lost them
+#: (bench/RESULTS.md, 2026-12-03, helper R4); 100 hold a second of 100 Hz inputs. The
+#: depth is the reader's own: publishers of any depth still match.
+INPUT_DEPTH = 100
 #: A clock jump longer than this (a player restarted further on) is not ticked through.
 MAX_CATCH_UP_S = 5.0
 #: After SIGINT/SIGTERM, how long the callbacks under way may take to end (`run`). With
@@ -118,11 +125,14 @@ class PacingNode(Node):
         self._last_save = time.monotonic()
         try:
             self._resume()
+            # Now, not on the first advice: that tick holds the output log's lock, which
+            # the input callbacks wait for (`registry.prepare_codecs`).
+            registry.prepare_codecs()
             for entry in registry.SAMPLE_TOPICS:
                 topic = entry.topic
-                self.create_subscription(message_class(topic.msgtype), topic.key,
-                                         self._on_input(entry), qos_profile(topic.qos),
-                                         raw=True)
+                self.create_subscription(
+                    message_class(topic.msgtype), topic.key, self._on_input(entry),
+                    qos_profile(replace(topic.qos, depth=INPUT_DEPTH)), raw=True)
             self._pub = {t.key: self.create_publisher(message_class(t.msgtype), t.key,
                                                       qos_profile(t.qos))
                          for t in topics.OUTPUT_TOPICS}

@@ -19,9 +19,11 @@ topic at its log time scaled by `rate`, with the QoS its publishers offered when
 recorded (`offered_qos_profiles`, read as `ros2 bag play` reads it), or, for a channel
 without that record, the interface's QoS of a known topic and ROS 2's default otherwise.
 All publishers are created before the first message, so subscribers can match first
-(`wait_for_matched_s` waits for them, then `MATCH_SETTLE_S` more). With `clock_hz` the
+(`wait_for_matched_s` waits for them, then `MATCH_SETTLE_S` more, and `delay_s` holds the
+first message back further, as `ros2 bag play --delay` does). With `clock_hz` the
 playback time is published on `/clock` (rosgraph_msgs/Clock, clock QoS) for nodes
-running with `use_sim_time`, from the start time while waiting for subscribers.
+running with `use_sim_time`, from the start time while waiting for subscribers and
+during the delay.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ import threading
 import time
 from collections import Counter
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -65,6 +68,8 @@ CLOCK_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 #: see a subscriber before that subscriber knows the publisher, and best-effort messages
 #: sent in between are dropped by the subscriber.
 MATCH_SETTLE_S = 0.25
+#: While holding, how often the subscriber counts are polled (and, at most, `/clock` sent).
+HOLD_STEP_S = 0.02
 
 
 @dataclass(frozen=True)
@@ -80,6 +85,14 @@ class PlaySettings:
         wait_for_matched_s: before playing, wait up to this long for every played pacing
             input topic, and `/clock` with `clock_hz`, to have a subscriber (0: start at
             once, like `ros2 bag play`).
+        delay_s: then hold the first message back this long (`ros2 bag play --delay`),
+            once, not before each loop. The wait sees the player's side only: a
+            subscriber whose side has not matched yet drops what comes first, and any
+            subscriber of a topic (a recorder's) ends the wait for it (a node lost its
+            first messages, up to 4 fixes, in 9 of 78 pipeline tests at load ~10 on 2
+            cores, 2026-12-03). `/clock` holds the start time meanwhile (rosbag2
+            publishes none during its delay), so a `use_sim_time` node has a time
+            before its inputs.
         namespace: namespace of the pacing topics in the log (for their QoS).
     """
 
@@ -89,6 +102,7 @@ class PlaySettings:
     start_offset_s: float = 0.0
     topics: tuple[str, ...] = ()
     wait_for_matched_s: float = 0.0
+    delay_s: float = 0.0
     namespace: str = DEFAULT_NAMESPACE
 
 
@@ -149,6 +163,8 @@ def play(log_path: str | Path, settings: PlaySettings = PlaySettings(),
     path = Path(log_path)
     if not settings.rate > 0:
         raise RideLogError(f'{path}: playback rate must be > 0, got {settings.rate}')
+    if not settings.delay_s >= 0:
+        raise RideLogError(f'{path}: the delay must be >= 0 s, got {settings.delay_s}')
     if not path.is_file():
         raise RideLogError(f'{path}: no such ride log')
     stop = stop_event or threading.Event()
@@ -157,6 +173,7 @@ def play(log_path: str | Path, settings: PlaySettings = PlaySettings(),
         player = _Player(path, node, settings, channels)
         if settings.wait_for_matched_s > 0:
             player.wait_for_subscribers(stop)
+        player.hold(stop, time.monotonic() + settings.delay_s)
         while player.play_once(stop):
             player.stats.loops += 1
             if not settings.loop:
@@ -205,6 +222,8 @@ class _Player:
                 channel, known[channel.topic].qos if channel.topic in known else DEFAULT_QOS)
         self._clock = (node.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
                        if settings.clock_hz > 0 else None)
+        self._hold_period_s = min(1.0 / settings.clock_hz if self._clock else HOLD_STEP_S,
+                                  HOLD_STEP_S)
         absent = sorted(set(settings.topics) - {c.topic for c in channels})
         if absent:
             log.warning('%s: no messages on %s in this log', path, ', '.join(absent))
@@ -236,24 +255,29 @@ class _Player:
                    if pub is not None and topic in inputs}
         if self._clock is not None:  # else a sim-time node's first inputs have no time
             waiting[CLOCK_TOPIC] = self._clock
-        start_ns = _first_log_time_ns(self.path) + int(self.settings.start_offset_s * 1e9)
-        period_s = 1.0 / self.settings.clock_hz if self._clock is not None else 0.02
         deadline = time.monotonic() + self.settings.wait_for_matched_s
-        settled_at: float | None = None
         while not stop.is_set() and time.monotonic() < deadline:
-            if self._clock is not None:
-                self._publish_clock(start_ns)
-            if settled_at is None and all(p.get_subscription_count() > 0
-                                          for p in waiting.values()):
-                settled_at = time.monotonic() + MATCH_SETTLE_S
-            if settled_at is not None and time.monotonic() >= settled_at:
+            if all(p.get_subscription_count() > 0 for p in waiting.values()):
+                self.hold(stop, time.monotonic() + MATCH_SETTLE_S)
                 return
-            stop.wait(min(period_s, 0.02))
+            self.hold(stop, min(time.monotonic() + HOLD_STEP_S, deadline))
         self.stats.unmatched = sorted(t for t, p in waiting.items()
                                       if p.get_subscription_count() == 0)
         if self.stats.unmatched:
             log.warning('%s: no subscriber on %s after %.1f s; playing anyway', self.path,
                         ', '.join(self.stats.unmatched), self.settings.wait_for_matched_s)
+
+    def hold(self, stop: threading.Event, until: float) -> None:
+        """Publish nothing until `until` (monotonic s) but `/clock` at the start time."""
+        while not stop.is_set() and (now := time.monotonic()) < until:
+            if self._clock is not None:
+                self._publish_clock(self._start_ns)
+            stop.wait(min(until - now, self._hold_period_s))
+
+    @cached_property
+    def _start_ns(self) -> int:
+        """The playback's start time: the log's first, plus the start offset."""
+        return _first_log_time_ns(self.path) + int(self.settings.start_offset_s * 1e9)
 
     def _publish_clock(self, stamp_ns: int) -> None:
         assert self._clock is not None
