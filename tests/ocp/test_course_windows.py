@@ -27,7 +27,7 @@ from itt_planner.ocp.course_windows import (
     window_corners_per_km,
     window_iter_cap,
 )
-from itt_planner.ocp.solver import PlanStatus, SolveResult
+from itt_planner.ocp.solver import PlanStatus, SolveResult, full_course_solver
 from itt_planner.ocp.transcription import Layout
 
 
@@ -149,7 +149,7 @@ def test_windows_from_the_1d_plan_cap_the_barrier_and_the_polish_has_its_toleran
     """`OcpSettings.window_mu_max` on every run of a window from the 1D plan (not from
     the arc guess, not the polish), `window_polish_tol` on the polish alone."""
     calls: list[tuple[str, dict[str, Any]]] = []
-    real = course_budget.full_course_solver
+    real = full_course_solver
 
     def spy(tr: Any, **kwargs: Any) -> Any:
         calls.append((tr.model.name, kwargs))
