@@ -72,25 +72,26 @@ class OcpSettings:
             and Sauerland's window 9 ran to 600 (156 s) after windows of 91-170 and
             converged in 109 with it.
         window_mu_max: the cap on the adaptive barrier of a window's runs from the 1D
-            plan (IPOPT's `mu_max`; the 1D model's own cap, `solver._MU_MAX_1D`). The 1D
-            plan rides the corners on the centre line at speeds beyond the 3D model's
-            grip (largest constraint violation 1.1-44 at the windows' starts): without
-            a cap the barrier rose to 1e3-1e4 (4 of Ardennes' 6 windows) while IPOPT
-            restored feasibility, pushed the point away from the
-            guess into the bounds' interior (Ardennes 39-50 km: the objective went from
-            1644 to 1732 s) and the window then crawled back for ~170 iterations to its
-            optimum (1663 s). With the cap (bench/RESULTS.md, 2026-12-03, helper P4) the
-            Ardennes windows took 897 iterations instead of 1,061, each to an objective
-            no worse. Not for the arc guess (dense corners): on cold 3D starts from the
-            default guess the same cap was neutral overall (2026-12-01: 0.975x over 7
-            courses, 0.5x to 2.1x each).
+            plan (IPOPT's `mu_max`, as the 1D model's own `solver._MU_MAX_1D`). The 1D
+            plan rides the centre line's corners faster than the 3D model's grip
+            (largest constraint violation 1.1-44 at the Ardennes windows' starts):
+            uncapped, the barrier rose to 1e3-1e4 in 4 of those 6 windows while IPOPT
+            restored feasibility, the point went deep into the bounds' interior (39-50
+            km: objective 1644 s at the guess, 1732 s after 35 iterations) and the
+            window crawled back to its optimum (1663 s) for ~170 iterations. Capped
+            (bench/RESULTS.md, 2026-12-03, helper P4): Ardennes' windows 897
+            iterations instead of 1,061, each to an objective no worse; whole plans
+            Ardennes 1,237 iterations instead of 1,396, Shanghai 1,049 (1,231),
+            Sauerland 1,352 (1,545). Not for the arc guess (dense corners): the same cap
+            on cold 3D starts from the default guess was neutral (2026-12-01: 0.975x
+            over 7 courses, 0.5x to 2.1x each).
         window_polish_tol: IPOPT's tolerance of the run on the full mesh resumed from
-            the windows' stitched point (`tol` for every other run). Its point is the
-            plan, and the plan is verified either way; but near the optimum the
-            adaptive barrier fell below 1e-9 and a full step put a constraint 0.165 off
-            (Ardennes, from the windows of two settings alike: at 5.5e-6 and 7e-6 of
-            error, then restoration and 60+ iterations of ~1 s; bench/RESULTS.md,
-            2026-12-03, helper P4).
+            the windows' stitched point (`tol` for every other run); its plan is
+            verified as any. Near the optimum this run's adaptive barrier fell below
+            1e-9 and a full step put a constraint 0.165 off, then restoration and 66-78
+            iterations of ~1 s CPU each, still running (Ardennes, from the windows of
+            two other settings, after reaching 7e-6 and 5.5e-6 of error; at 1e-5: 17
+            iterations; bench/RESULTS.md, 2026-12-03, helper P4).
     """
 
     h_min_m: float = 1.0
