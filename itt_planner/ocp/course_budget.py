@@ -50,18 +50,22 @@ class Budget:
     def run(self, strategy: str, pr: CourseNlp, w0: np.ndarray, share: float = 1.0,
             bound_push: float = BOUND_PUSH, acceptable_tol: float | None = None,
             resume: SolveResult | None = None, never_monotone: bool = False,
-            max_iter: int | None = None) -> SolveResult:
+            max_iter: int | None = None, mu_max: float | None = None,
+            tol: float | None = None) -> SolveResult:
         """One solver run from `w0` with `share` of what is left of the budget, and at
         most `max_iter` iterations if given; `resume`: a previous run on `pr` to continue
-        from its primal-dual point (its multipliers too) instead of a fresh start."""
+        from its primal-dual point (its multipliers too) instead of a fresh start;
+        `mu_max`: a cap on the adaptive barrier (`solver.full_course_solver`); `tol`:
+        IPOPT's tolerance of this run instead of the solve's."""
         its, secs = self.left()
         its = int(its * share) if max_iter is None else min(int(its * share), max_iter)
         t0, c0 = time.perf_counter(), time.process_time()
         solver = full_course_solver(pr.tr, max_iter=its,
-                                    max_cpu_time_s=secs * share, tol=self.tol,
+                                    max_cpu_time_s=secs * share,
+                                    tol=self.tol if tol is None else tol,
                                     bound_push=bound_push, acceptable_tol=acceptable_tol,
                                     resume=resume is not None,
-                                    never_monotone=never_monotone)
+                                    never_monotone=never_monotone, mu_max=mu_max)
         res = solver.solve(w0, pr.p, pr.lbw, pr.ubw,
                            lam_x0=None if resume is None else resume.lam_x,
                            lam_g0=None if resume is None else resume.lam_g)

@@ -22,15 +22,15 @@ start may use `_FIRST_SHARE` of it):
   the coarse run does not converge, the cold start on the full mesh as before;
 - windows first (3D, cold as above, a course longer than `OcpSettings.window_min_m`):
   the 1D plan, then the 3D model on overlapping windows of ~12 km of work (shorter
-  among corners) from it, each cold on its own nodes of the full mesh (no coarse mesh
-  first: on Ardennes that failed in 2 of 4 windows of 15 km, and a window's own run
-  costs less than a coarse and a fine one, bench/RESULTS.md, 2026-12-02, H3), then a
-  run on the full mesh resumed from their stitched primal-dual point (`course_windows`,
-  why there). A window that gives up early, or still runs at 1.5 times the iterations
-  of the slowest window before it (`OcpSettings.window_max_iter`), is restarted with
-  the smaller bound push below; one that still fails, from the other guess (the arc guess
-  or the 1D plan). If the 1D plan or a window does not converge, the coarse mesh first
-  or the cold start as without;
+  among corners) from it (barrier capped, `OcpSettings.window_mu_max`), each cold on
+  its own nodes of the full mesh (no coarse mesh first: on Ardennes that failed in 2 of
+  4 windows of 15 km, and a window's own run costs less than a coarse and a fine one,
+  bench/RESULTS.md, 2026-12-02, H3), then a run on the full mesh resumed from their
+  stitched primal-dual point (`course_windows`, why there). A window that gives up
+  early, or still runs at 1.5 times the iterations of the slowest window before it
+  (`OcpSettings.window_max_iter`), is restarted with the smaller bound push below; one
+  that still fails, from the other guess (the arc guess or the 1D plan). If the 1D plan
+  or a window does not converge, the coarse mesh first or the cold start as without;
 - early failure (`solver.SolveResult.gave_up_early`): the same start with a smaller
   bound push (on short courses the 3D model ended in Restoration_Failed with IPOPT's
   default push and converged in 39-64 iterations with 1e-4);
@@ -79,6 +79,7 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from functools import partial
 
 import numpy as np
 
@@ -239,8 +240,7 @@ class CourseSolve:
             return None
         st, run, usable = self.settings, self.budget.run, self.budget.usable
         apex = np.array([c.apex_s_m for c in self.course.corners])
-        wins = plan_windows(prob.nodes, st.window_m, st.window_overlap_m, apex,
-                            st.window_corner_m)
+        wins = plan_windows(prob.nodes, st.window_m, st.window_overlap_m, apex, st.window_corner_m)
         runs: list[SolveResult] = []
         win_nlp: CourseNlp | None = None
         for k, win in enumerate(wins):
@@ -264,28 +264,30 @@ class CourseSolve:
                 return None
             runs.append(res)
         point = stitch(prob.tr.layout, wins, runs)
-        return run("polish from the windows", prob, point.w, share=_FIRST_SHARE, resume=point)
+        return run("polish from the windows", prob, point.w, share=_FIRST_SHARE, resume=point,
+                   tol=st.window_polish_tol)
 
     def _solve_window(self, label: str, base: Plan, dense: bool, reserve: float,
                       start: Start | None, nodes: np.ndarray, share: float, cap: int
                       ) -> tuple[CourseNlp, SolveResult]:
         """One window's runs (`_window_nlp`), `share` of the budget left each: from the
-        arc guess if `dense`, else from the 1D plan `base`; after an early failure or at
-        `cap` iterations (`course_windows.window_iter_cap`) again with the smaller bound
-        push; capped, resumed; still not converged, all that once more from the other
-        guess (the Sauerland ride's window at 77-89 km, calibrated rider, ended
-        Restoration_Failed from the 1D plan with both bound pushes)."""
-        run, usable = self.budget.run, self.budget.usable
+        arc guess if `dense`, else from the 1D plan `base` with the barrier capped
+        (`OcpSettings.window_mu_max`); after an early failure or at `cap` iterations
+        (`course_windows.window_iter_cap`) again with the smaller bound push; capped,
+        resumed; still not converged, all that once more from the other guess (the
+        Sauerland ride's window at 77-89 km, calibrated rider, ended Restoration_Failed
+        from the 1D plan with both bound pushes)."""
         for arc in (dense, not dense):
             nlp = self._window_nlp(None if arc else base, reserve, start, nodes)
             name = f"{label}{', arc guess' if arc else ''})"
+            run = partial(self.budget.run, mu_max=None if arc else self.settings.window_mu_max)
             res = run(name, nlp, nlp.w_guess, share=share, max_iter=cap)
-            if (res.gave_up_early or res.iterations >= cap) and usable():
+            if (res.gave_up_early or res.iterations >= cap) and self.budget.usable():
                 res = run(f"{name}, smaller bound push", nlp, nlp.w_guess,
                           bound_push=_RETRY_BOUND_PUSH, share=share)
-            if res.status is PlanStatus.CAPPED and usable():
+            if res.status is PlanStatus.CAPPED and self.budget.usable():
                 res = run(f"{name}, resumed", nlp, res.w, share=0.5, resume=res)
-            if res.converged or not usable():
+            if res.converged or not self.budget.usable():
                 break
         return nlp, res
 
@@ -306,11 +308,10 @@ class CourseSolve:
         """A window's NLP on `nodes`: from `start` (the course's start if None), leaving
         `reserve` of W' at its end, from the 1D plan `base` as its guess (the default
         guess if None)."""
+        guess = None if base is None else plan_between(base, float(nodes[0]), float(nodes[-1]))
         return course_nlp(self.course, self.rider, self.conditions,
                           dataclasses.replace(self.settings, e_final_min=reserve), "3d", nodes,
-                          self.v0 if start is None else start.state["v"], start,
-                          None if base is None else plan_between(base, float(nodes[0]),
-                                                                 float(nodes[-1])))
+                          self.v0 if start is None else start.state["v"], start, guess)
 
     def _plan_1d(self, strategy: str, share: float) -> Plan:
         """The 1D plan of the same solve (`share` of the CPU left at most), an attempt."""
@@ -321,9 +322,8 @@ class CourseSolve:
             st, max_iter=None, max_cpu_time_s=min(secs * share, st.budget("1d", left_m)[1])))
         self.budget.attempts.append({
             "strategy": strategy, "status": base.solver_status,
-            "outcome": PlanStatus.of(base.solver_status).value,
-            "iterations": base.iterations, "n_nodes": base.n_nodes,
-            "time_s": round(base.solve_time_s, 3),
+            "outcome": PlanStatus.of(base.solver_status).value, "iterations": base.iterations,
+            "n_nodes": base.n_nodes, "time_s": round(base.solve_time_s, 3),
             "cpu_s": round(time.process_time() - cpu0, 3)})
         return base
 

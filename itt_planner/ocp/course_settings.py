@@ -71,6 +71,27 @@ class OcpSettings:
             (104 s CPU) after windows of 37-77 and converged in 154 with the smaller push,
             and Sauerland's window 9 ran to 600 (156 s) after windows of 91-170 and
             converged in 109 with it.
+        window_mu_max: the cap on the adaptive barrier of a window's runs from the 1D
+            plan (IPOPT's `mu_max`, as the 1D model's own `solver._MU_MAX_1D`). The 1D
+            plan rides the centre line's corners faster than the 3D model's grip
+            (largest constraint violation 1.1-44 at the Ardennes windows' starts):
+            uncapped, the barrier rose to 1e3-1e4 in 4 of those 6 windows while IPOPT
+            restored feasibility, the point went deep into the bounds' interior (39-50
+            km: objective 1644 s at the guess, 1732 s after 35 iterations) and the
+            window crawled back to its optimum (1663 s) for ~170 iterations. Capped
+            (bench/RESULTS.md, 2026-12-03, helper P4): Ardennes' windows 897
+            iterations instead of 1,061, each to an objective no worse; whole plans
+            Ardennes 1,237 iterations instead of 1,396, Shanghai 1,049 (1,231),
+            Sauerland 1,352 (1,545). Not for the arc guess (dense corners): the same cap
+            on cold 3D starts from the default guess was neutral (2026-12-01: 0.975x
+            over 7 courses, 0.5x to 2.1x each).
+        window_polish_tol: IPOPT's tolerance of the run on the full mesh resumed from
+            the windows' stitched point (`tol` for every other run); its plan is
+            verified as any. Near the optimum this run's adaptive barrier fell below
+            1e-9 and a full step put a constraint 0.165 off, then restoration and 66-78
+            iterations of ~1 s CPU each, still running (Ardennes, from the windows of
+            two other settings, after reaching 7e-6 and 5.5e-6 of error; at 1e-5: 17
+            iterations; bench/RESULTS.md, 2026-12-03, helper P4).
     """
 
     h_min_m: float = 1.0
@@ -99,6 +120,8 @@ class OcpSettings:
     window_max_iter: int = 600
     window_min_iter: int = 200
     window_iter_factor: float = 1.5
+    window_mu_max: float = 0.1
+    window_polish_tol: float = 1e-5
 
     def budget(self, model: str, length_m: float) -> tuple[int, float]:
         """(iterations, seconds) for one solve of `length_m` metres with `model`.

@@ -200,14 +200,16 @@ _NEVER_MONOTONE = {"ipopt.adaptive_mu_globalization": "never-monotone-mode"}
 
 def full_course_solver(tr: Transcription, *, max_iter: int, max_cpu_time_s: float, tol: float,
                        bound_push: float, acceptable_tol: float | None = None,
-                       resume: bool = False, never_monotone: bool = False) -> NlpSolver:
+                       resume: bool = False, never_monotone: bool = False,
+                       mu_max: float | None = None) -> NlpSolver:
     """The solver of one full-course attempt (`course_problem.solve_plan`).
 
     `bound_push` (= IPOPT's `bound_frac`): how far the initial point is moved inside its
     bounds; IPOPT's default 1e-2 first (1e-4 took 116 instead of 75 iterations on
     verona-like 3D), 1e-4 as a restart after an early failure (see `course_problem`).
     `acceptable_tol`: IPOPT's acceptable level (default: IPOPT's own 1e-6 ... with 15
-    acceptable iterations). The 1D model's barrier is capped (`_MU_MAX_1D`). `resume`:
+    acceptable iterations). The 1D model's barrier is capped (`_MU_MAX_1D`), any
+    model's at `mu_max` if given (a 3D window from the 1D plan, `course_restarts`). `resume`:
     the run continues a previous one from its primal-dual point (`_RESUME`; the caller
     passes the multipliers to `solve`). `never_monotone`: the adaptive barrier without
     its fall-back to the monotone mode (`_NEVER_MONOTONE`). The budget is at least one
@@ -221,6 +223,8 @@ def full_course_solver(tr: Transcription, *, max_iter: int, max_cpu_time_s: floa
             **_FULL_COURSE_MUMPS}
     if tr.model.name == "1d":
         opts["ipopt.mu_max"] = _MU_MAX_1D
+    if mu_max is not None:
+        opts["ipopt.mu_max"] = mu_max
     if acceptable_tol is not None:
         opts |= {"ipopt.acceptable_tol": acceptable_tol, "ipopt.acceptable_iter": 5}
     if resume:

@@ -17,7 +17,7 @@ from support.real_data import data_path
 from itt_planner.course.builder import build_course
 from itt_planner.course.loader import load_course
 from itt_planner.model.rider import PRESETS
-from itt_planner.ocp import course_restarts
+from itt_planner.ocp import course_budget, course_restarts
 from itt_planner.ocp.course_budget import Budget
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.course_settings import OcpSettings
@@ -27,7 +27,7 @@ from itt_planner.ocp.course_windows import (
     window_corners_per_km,
     window_iter_cap,
 )
-from itt_planner.ocp.solver import PlanStatus, SolveResult
+from itt_planner.ocp.solver import PlanStatus, SolveResult, full_course_solver
 from itt_planner.ocp.transcription import Layout
 
 
@@ -142,6 +142,33 @@ def test_a_window_at_its_iteration_cap_starts_again_with_the_smaller_bound_push(
     assert retry["strategy"] == first["strategy"] + ", smaller bound push"
     assert retry["iterations"] > 5  # the retry is not held to the cap
     assert plan.meta["success"], attempts
+
+
+def test_windows_from_the_1d_plan_cap_the_barrier_and_the_polish_has_its_tolerance(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """`OcpSettings.window_mu_max` on every run of a window from the 1D plan (not from
+    the arc guess, not the polish), `window_polish_tol` on the polish alone."""
+    calls: list[tuple[str, dict[str, Any]]] = []
+    real = full_course_solver
+
+    def spy(tr: Any, **kwargs: Any) -> Any:
+        calls.append((tr.model.name, kwargs))
+        return real(tr, **kwargs)
+
+    monkeypatch.setattr(course_budget, "full_course_solver", spy)
+    course, rider = build_course(SHORT), PRESETS["paper"]
+    settings = OcpSettings(window_min_m=0.0, window_m=700.0, window_overlap_m=300.0,
+                           window_mu_max=0.05, window_polish_tol=3e-6)
+    for arc_per_km, mu_max in ((1e9, 0.05), (-1.0, None)):  # from the 1D plan / arc guess
+        calls.clear()
+        plan = solve_plan(course, rider, model="3d", settings=dataclasses.replace(
+            settings, window_arc_guess_corners_per_km=arc_per_km))
+        assert plan.meta["success"], plan.meta["attempts"]
+        *windows, polish = [kw for name, kw in calls if name == "3d"]
+        assert len(windows) >= 2
+        assert all(kw["mu_max"] == mu_max and kw["tol"] == settings.tol for kw in windows)
+        assert polish["resume"] and polish["mu_max"] is None and polish["tol"] == 3e-6
+        assert all(kw["mu_max"] is None for name, kw in calls if name == "1d")
 
 
 def test_a_window_may_run_half_again_the_iterations_of_the_slowest_one_before_it() -> None:
