@@ -129,10 +129,11 @@ class HorizonWindow:
         W' from the rider's, riding the plan's power (`_ridden_e_n`: what the terminal
         target asks for, `terminal_e_n`); the line and the speed by the rider's offsets,
         fading out over `_REJOIN_M`, within the bounds `x_lo`, `x_hi`. Why: with only
-        the first node moved, a rider ridden 5.4 m
-        across the road from the plan's line (a recorded ride of an older plan's line)
-        started IPOPT from a 5.4 m jump in a 3 m interval, and the cold replans hit the
-        iteration cap (verona-like replay, 14.4 km).
+        the first node moved, a rider ridden 5.4 m across the road from the plan's line
+        (a recorded ride of an older plan's line) started IPOPT from a 5.4 m jump in a
+        3 m interval, and the cold replans hit the iteration cap (verona-like replay,
+        14.4 km). With the plan's W' shifted, a rider with W' to spare over a plan that
+        had emptied it started above full W' (Sauerland, bench/RESULTS.md, 2026-12-03).
         """
         m, x = self.model, x.copy()
         ie = m.index("e_n")
