@@ -343,7 +343,7 @@ class CourseSolve:
                 break
             cap = np.minimum(cap, plan_spacing_cap(self.course, plan, self.rider,
                                                    self.conditions))
-            if self.check is not None:
+            if self.check is not None and self.check.unresolved_s_m:  # 3D only
                 cap = np.minimum(cap, split_spacing_m(self.course.s_m, prob.nodes,
                                                       self.check.unresolved_s_m))
             nodes = (self.mesh(cap) if self.model == "1d"
