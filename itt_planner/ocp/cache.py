@@ -46,7 +46,8 @@ PLAN_CODE_MODULES = (
     "itt_planner.ocp.bounds",
     "itt_planner.ocp.guess", "itt_planner.ocp.solver", "itt_planner.ocp.course_settings",
     "itt_planner.ocp.course_nlp", "itt_planner.ocp.course_problem",
-    "itt_planner.ocp.course_restarts", "itt_planner.ocp.course_budget",
+    "itt_planner.ocp.course_restarts", "itt_planner.ocp.course_refine",
+    "itt_planner.ocp.course_budget",
     "itt_planner.ocp.course_windows", "itt_planner.ocp.verify",
     "itt_planner.ocp.plan",
 )

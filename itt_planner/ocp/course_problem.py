@@ -18,7 +18,8 @@ course: `ocp.line_plan`, `model.dynamics.build_1d_line`):
    a converged plan that fails it is `invalid` (`solver.PlanStatus`), never a success.
 
 Restart strategies (issue 14 item 2, issue 18 item 3), the budget their runs share and
-the verification of each plan: `course_restarts`. A re-solve of the rest of the course
+the verification of each plan: `course_restarts` (the refinement of a plan that fails it:
+`course_refine`). A re-solve of the rest of the course
 can start from the primal-dual point of the plan it leaves (`solve_plan(warm=)`).
 
 Boundary conditions and launch: `course_nlp`.
@@ -40,6 +41,7 @@ from itt_planner.model.dynamics import MODELS
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.course_budget import Budget
 from itt_planner.ocp.course_nlp import PrimalDual, check_inputs, cut_nodes, start_speed
+from itt_planner.ocp.course_refine import refine
 from itt_planner.ocp.course_restarts import CourseSolve
 from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.guess import speed_spacing_cap
@@ -124,9 +126,12 @@ def solve_plan_point(course: Course, rider: Rider, conditions: Conditions = Cond
         nodes = cut_nodes(warm.nodes, start_m, 0.5 * settings.h_min_m, course.s_m, cap)
     prob = solve.nlp(nodes, guess)
     t_build = time.perf_counter() - t_start
-    prob, res = solve.first(prob, cap) if warm is None else solve.warm(prob, warm, cap)
-    plan = solve.finish(prob, res)
-    plan = solve.refine(plan, prob, cap)
+    if warm is None:
+        prob, res = solve.first(prob, cap)
+        plan = solve.finish(prob, res)
+    else:
+        prob, plan = solve.warm(prob, warm, cap)
+    plan = refine(solve, plan, prob, cap)
     if plan.status != PlanStatus.CONVERGED.value:
         log.warning("full-course %s OCP on %s: %s (%s) after %d iterations", model, course.name,
                     plan.status, plan.solver_status, plan.iterations)

@@ -11,7 +11,12 @@ start may use `_FIRST_SHARE` of it):
   starts from (`solve_plan(warm=)`, `course_nlp.PrimalDual`): first a run resumed from
   that point on that plan's mesh cut at the start; on the Zwift Bologna ride 8-22
   iterations instead of 44-116 (bench/RESULTS.md, 2026-12-01, issue 14 re-solves);
-  if it does not converge, the strategies below on a mesh built for the start;
+  if it does not converge, or its plan fails the verification, the strategies below on
+  a mesh built for the start, from the guess. From the old mesh, a rider at 1 m/s before
+  the hairpin test course's corner stopped at the caps; a Sauerland 1D re-solve on the
+  line, warm from a point 2 km behind the rider, converged onto an artefact (2 -> 14 m/s
+  in one 10 m RK4 step), and its refinement found it again; on a mesh for the start from
+  the plan in force: 106 iterations, verified (bench/RESULTS.md, 2026-12-03, third);
 - coarse mesh first (3D, cold, no given guess, no start, more than `_COARSE_MIN_NODES`
   nodes): solve on every other node of the mesh (intervals up to 2 h_max_m, two RK4
   substeps each: half the KKT system), then resume on the full mesh from that
@@ -56,20 +61,8 @@ start may use `_FIRST_SHARE` of it):
 - still capped: continue from the last iterate with IPOPT's acceptable level relaxed
   (`_RELAXED_TOL`: 1e-4 in 5 consecutive iterations), which the verification then
   has to confirm;
-- converged but not verified (a speed the mesh does not resolve, e.g. a rider slowed
-  far below the guess, or the 3D launch: one 1 m RK4 step from 1 m/s gains ~0.7 m/s):
-  the mesh is refined where the plan is slow (`mesh.speed_spacing_m` on the plan's
-  speeds and tyre forces) and re-solved, at most `_REFINE_ROUNDS` times. 1D: a mesh
-  built for that cap, from the default guess, not from the invalid plan (it rides on
-  the artefact); still invalid: the whole mesh at half the spacing (at 20 m the 1D
-  plans of bologna and rovereto-like were invalid, 2026-12-01). 3D: the plan's nodes
-  with the slow ones split (`course_nlp.cut_nodes`) and those with a lateral, heading
-  or roll defect over tolerance (`mesh.split_spacing_m`: an Ardennes re-solve's roll 2x
-  where the speed rule split nothing), resumed from the plan's primal-dual point moved
-  onto them (`cut_point`), from its primal point if that fails. A mesh built afresh
-  kept 2 of 348 nodes (test hairpin, 600 m straights), the plan on it sat off the
-  active arcs of C11/C15/C16: a rider limited to 4 m/s^2 ended Infeasible_Problem_Detected
-  after 419 iterations (split and resumed: 7; issue 18).
+- converged but not verified: the mesh refined where the plan is slow, and re-solved
+  (`course_refine`).
 """
 
 from __future__ import annotations
@@ -92,7 +85,6 @@ from itt_planner.ocp.course_nlp import (
     CourseNlp,
     PrimalDual,
     course_nlp,
-    cut_nodes,
     mesh_substeps,
     to_plan,
 )
@@ -106,8 +98,7 @@ from itt_planner.ocp.course_windows import (
     window_iter_cap,
     window_start,
 )
-from itt_planner.ocp.guess import plan_spacing_cap
-from itt_planner.ocp.mesh import build_mesh, split_spacing_m
+from itt_planner.ocp.mesh import build_mesh
 from itt_planner.ocp.plan import Plan
 from itt_planner.ocp.solver import INVALID_RAW_STATUS, PlanStatus, SolveResult
 from itt_planner.ocp.verify import Verification, verify_plan
@@ -135,8 +126,6 @@ _RESUME_SHARE = 0.8
 _WARM_SHARE = 0.3
 #: IPOPT's acceptable tolerance of the relaxed restart (module docstring).
 _RELAXED_TOL = 1e-4
-#: Mesh refinements after a failed verification (module docstring).
-_REFINE_ROUNDS = 2
 
 
 @dataclass
@@ -165,6 +154,11 @@ class CourseSolve:
     def start_m(self) -> float:
         return 0.0 if self.start is None else self.start.s_m
 
+    @property
+    def one_d(self) -> bool:
+        """A 1D model ("1d", or "1dline" on a line): no roll mode, cheap cold starts."""
+        return self.model != "3d"
+
     def mesh(self, cap: np.ndarray, scale: float = 1.0) -> np.ndarray:
         """The mesh with the spacing scaled by `scale` (0.5: half the spacing)."""
         st = self.settings
@@ -178,17 +172,20 @@ class CourseSolve:
                           nodes, self.v0, self.start, guess, self.free_start)
 
     def warm(self, prob: CourseNlp, point: PrimalDual, cap: np.ndarray
-             ) -> tuple[CourseNlp, SolveResult]:
+             ) -> tuple[CourseNlp, Plan]:
         """A re-solve from the primal-dual point of the plan it starts from, `prob` on
-        that plan's mesh cut at the start; if it does not converge, `first` on a mesh
-        built for the start. Returns the NLP the result belongs to, and the result."""
+        that plan's mesh cut at the start; if it does not converge, or its plan fails
+        the verification, `first` on a mesh built for the start. Returns the NLP the
+        plan belongs to, and the plan (`finish`ed)."""
         res = self.budget.resume_at("warm", prob, point, share=_WARM_SHARE)
         if res.converged:
-            return prob, res
-        # The restarts on a mesh of their own: on a split launch (a rider at 1 m/s before
-        # the hairpin test course's corner) they stopped at their caps, where from the
-        # mesh built for the start they converged.
-        return self.first(self.nlp(self.mesh(cap), self.guess), cap)
+            plan = self.finish(prob, res)
+            if plan.status != PlanStatus.INVALID.value or not self.budget.usable():
+                return prob, plan
+        # The restarts on a mesh of their own (module docstring: a split launch, and a
+        # warm plan on an artefact of the old mesh).
+        prob, res = self.first(self.nlp(self.mesh(cap), self.guess), cap)
+        return prob, self.finish(prob, res)
 
     def first(self, prob: CourseNlp, cap: np.ndarray) -> tuple[CourseNlp, SolveResult]:
         """The first start and the restarts before a verification (module docstring):
@@ -207,9 +204,9 @@ class CourseSolve:
         if res.status is PlanStatus.CAPPED and self.model == "3d" and usable():
             # Capped 3D runs were mostly still converging: go on from where it stopped.
             res = run("resume", prob, res.w, share=_RESUME_SHARE, resume=res)
-        if not res.converged and self.model == "1d" and usable():
+        if not res.converged and self.one_d and usable():
             res = run("never-monotone barrier", prob, cold, share=0.5, never_monotone=True)
-        if not res.converged and self.model == "1d" and usable():
+        if not res.converged and self.one_d and usable():
             prob = self.nlp(self.mesh(cap, 0.5), self.guess)
             res = run("finer mesh", prob, prob.w_guess, share=0.7)
         if (res.status is PlanStatus.FAILED and self.model == "3d" and self.guess is None
@@ -334,37 +331,6 @@ class CourseSolve:
             warm = self.nlp(prob.nodes, base)
             return self.budget.run("warm from 1d", warm, warm.w_guess)
         return res
-
-    def refine(self, plan: Plan, prob: CourseNlp, cap: np.ndarray) -> Plan:
-        """Converged but not verified: refine where slow (module docstring)."""
-        usable, run = self.budget.usable, self.budget.run
-        for _ in range(_REFINE_ROUNDS):
-            if plan.status != PlanStatus.INVALID.value or not usable():
-                break
-            cap = np.minimum(cap, plan_spacing_cap(self.course, plan, self.rider,
-                                                   self.conditions))
-            if self.check is not None and self.check.unresolved_s_m:  # 3D only
-                cap = np.minimum(cap, split_spacing_m(self.course.s_m, prob.nodes,
-                                                      self.check.unresolved_s_m))
-            nodes = (self.mesh(cap) if self.model == "1d"
-                     else cut_nodes(prob.nodes, self.start_m, 0.0, self.course.s_m, cap))
-            # Any node added counts: a hard launch on St John's asked 10 more of 10,340 (a
-            # threshold of 0.1 % read that as "no finer mesh" and left the plan invalid).
-            if len(nodes) <= len(prob.nodes):
-                break  # the plan's speeds ask for no finer mesh: the mismatch is not the step
-            prob = self.nlp(nodes, self.guess if self.model == "1d" else plan)
-            res = None
-            if self.model == "3d" and self.point is not None:  # the plan's point, resumed
-                res = self.budget.resume_at("refined where slow, resumed", prob, self.point,
-                                            share=0.5)
-            if res is None or (not res.converged and usable()):
-                res = run("refined where slow", prob, prob.w_guess)
-            plan = self.finish(prob, res)
-        if plan.status == PlanStatus.INVALID.value and self.model == "1d" and usable():
-            # Still on an artefact: the whole mesh at half the spacing (bologna at 20 m).
-            prob = self.nlp(self.mesh(cap, 0.5), self.guess)
-            plan = self.finish(prob, run("finer mesh", prob, prob.w_guess))
-        return plan
 
     def finish(self, prob: CourseNlp, res: SolveResult) -> Plan:
         """The plan of one solver run, verified; its status and figures in `meta`."""

@@ -118,7 +118,7 @@ class Verification:
     check_time_s: float
     #: 3D: where the intervals start whose lateral, heading or roll defect exceeds its
     #: tolerance: the transcription's step does not resolve the dynamics there (the
-    #: restarts split them: `course_restarts.CourseSolve.refine`).
+    #: restarts split them: `course_refine.refine`).
     unresolved_s_m: tuple[float, ...] = ()
 
     def as_dict(self) -> dict[str, float | bool | str | int]:
