@@ -9,9 +9,7 @@ the core run without it.
 
 from __future__ import annotations
 
-import faulthandler
 import logging
-import signal
 import sys
 import threading
 from pathlib import Path
@@ -31,24 +29,19 @@ def _ros() -> None:
         raise IttError(f"{reason}; elsewhere use the Docker image (see the README)")
 
 
-#: On this signal a node, player or recorder writes every thread's Python stack to stderr
-#: and runs on: how a hung process says where it hangs (the ROS tests send it first).
-STACKS_SIGNAL = signal.SIGUSR1
-
-
 def _log_to_stderr() -> None:
-    """The core's log lines on stderr, in ROS 2's console format; the stacks on
-    `STACKS_SIGNAL`."""
+    """The core's log lines on stderr, in ROS 2's console format."""
     logging.basicConfig(level=logging.INFO, stream=sys.stderr,
                         format="[%(levelname)s] [%(created).3f] [%(name)s]: %(message)s")
-    faulthandler.register(STACKS_SIGNAL, all_threads=True)
 
 
-def _stop_on_signals() -> threading.Event:
-    """An event set by SIGINT/SIGTERM, so play/record finish their files cleanly."""
+def _stop_event() -> threading.Event:
+    """An event SIGINT/SIGTERM set, so play/record finish their files cleanly (and the
+    stacks on `signals.STACKS_SIGNAL`)."""
+    from itt_planner_ros.signals import handle_signals  # noqa: PLC0415
+
     stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda _s, _f: stop.set())
+    handle_signals(stop)
     return stop
 
 
@@ -125,7 +118,7 @@ def play_cli(
                                 start_offset_s=start_offset_s, topics=tuple(topic),
                                 wait_for_matched_s=wait_for_matched_s, delay_s=delay_s,
                                 namespace=namespace)
-        stats = play(log, settings, _stop_on_signals())
+        stats = play(log, settings, _stop_event())
     result = {"log": str(log), **stats.as_dict()}
     emit(result, as_json, lambda r: f"published {r['published']} messages from {r['log']}")
 
@@ -149,6 +142,6 @@ def record_cli(
             raise typer.BadParameter("name topics or use -a")
         settings = RecordSettings(topics=tuple(topics or ()), all_topics=all_topics,
                                   use_sim_time=use_sim_time)
-        stats = record(output, settings, _stop_on_signals(), duration_s)
+        stats = record(output, settings, _stop_event(), duration_s)
     result = {"output": str(output), **stats.as_dict()}
     emit(result, as_json, lambda r: f"recorded {r['recorded']} messages to {r['output']}")

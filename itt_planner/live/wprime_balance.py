@@ -1,7 +1,7 @@
 """The W' balance: measured power integrated against the critical power in use (E9).
 
 `WPrimeBalance` is the engine's W' model and the one holder of the CP in use: the
-balance is integrated with `wprime.e_n_rate` (model.md E9, Skiba by default), each power
+balance is integrated with `wprime.e_n_along` (model.md E9, Skiba by default), each power
 reading held until the next one for at most `power_hold_s`. The power history since the
 start (or a restore) is kept, so that the balance can be replayed with another CP: that
 is how a CP refit is found (`fit_critical_power`, asked by `cp_monitor.CpMonitor`) and
@@ -20,7 +20,7 @@ import numpy as np
 
 from itt_planner.model.mean_max import mean_max_power
 from itt_planner.model.rider import Rider
-from itt_planner.model.wprime import WPrimeModel, e_n_rate
+from itt_planner.model.wprime import WPrimeModel, e_n_along
 
 
 class WPrimeBalance:
@@ -140,32 +140,22 @@ class WPrimeBalance:
     def _history_balance(self, cp_w: float) -> tuple[float, float]:
         """(lowest, last) normalised W' over the power history with CP `cp_w`."""
         stamps = np.array([s for s, _ in self._power_log])
-        powers = np.array([p for _, p in self._power_log])
-        dt = np.minimum(np.diff(stamps), self.power_hold_s)
-        e = low = self._e_n_log_start
-        w0 = self.w_prime_j
-        for p, h in zip(powers[:-1].tolist(), dt.tolist(), strict=True):
-            # Skiba E9 (`wprime.e_n_rate`), written out on floats: this loop runs over
-            # the whole ride ~25 times per fit.
-            if p > cp_w:
-                e -= (p - cp_w) / w0 * h
-            elif self.model is WPrimeModel.SKIBA:
-                e = min(e + (cp_w - p) * (1 - e) / w0 * h, 1.0)
-            else:
-                e = min(e + float(e_n_rate(e, p, cp_w, w0, self.model)) * h, 1.0)
-            low = min(low, e)
-        return low, e
+        powers = [p for _, p in self._power_log[:-1]]
+        dt = np.minimum(np.diff(stamps), self.power_hold_s).tolist()
+        e = e_n_along(self._e_n_log_start, powers, dt, cp_w, self.w_prime_j, self.model)
+        return float(e.min()), float(e[-1])
 
     def _e_n_at(self, t: float) -> float:
         """Normalised W' at `t` >= the last reading, the last power held (E9, Euler
         steps of at most 1 s: the balance changes by < 1 % of W' per second)."""
         if self._power_t is None or t <= self._power_t:
             return self._e_n
-        e = self._e_n
         held = min(t - self._power_t, self.power_hold_s)
+        powers: list[float] = []
+        steps: list[float] = []
         for span, power in ((held, self._power_w), (t - self._power_t - held, 0.0)):
-            steps = math.ceil(span)
-            for _ in range(steps):
-                rate = float(e_n_rate(e, power, self.cp_w, self.w_prime_j, self.model))
-                e = min(e + rate * span / steps, 1.0)
-        return e
+            n = math.ceil(span)
+            powers += [power] * n
+            steps += [span / max(n, 1)] * n
+        return float(e_n_along(self._e_n, powers, steps, self.cp_w, self.w_prime_j,
+                               self.model)[-1])

@@ -2,15 +2,18 @@
 
 Written with operations NumPy floats and CasADi symbols share, so the OCP (symbolic) and
 the estimator (numeric) use one definition. Rates are per second; the spatial form of
-E9 divides by `s_dot`.
+E9 divides by `s_dot`. `e_n_along`: the balance over a sequence of held powers, for the
+live estimator and the horizon's W' targets (one loop for both).
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from enum import Enum
 from typing import Any
 
 import casadi as ca
+import numpy as np
 
 #: Width of the band below full W' over which the paper variant's recovery fades out.
 _PAPER_CAP_BAND = 0.02
@@ -46,3 +49,27 @@ def e_n_rate(e_n: Any, p_plus_w: Any, critical_power_w: Any, w_prime_j: Any,
     else:
         recovery = below * ca.fmin(1, (1 - e_n) / _PAPER_CAP_BAND)
     return (recovery - above) / w_prime_j
+
+
+def e_n_along(e0: float, power_w: Sequence[float], dt_s: Sequence[float],
+              critical_power_w: float, w_prime_j: float,
+              model: WPrimeModel = WPrimeModel.SKIBA, *, floor: float | None = None
+              ) -> np.ndarray:
+    """E_n from `e0` and after each step: pedalling power `power_w[k]` (>= 0) held for
+    `dt_s[k]` (E9, one Euler step each: keep the steps short, ~1 s, over which W'
+    changes by < 1 %). Capped at 1 (full); at `floor` from below if given, else free to
+    run below zero (how the estimator sees a CP set too high)."""
+    e = np.empty(len(dt_s) + 1)
+    e[0] = x = float(e0)
+    low = -np.inf if floor is None else floor
+    for k, (p, h) in enumerate(zip(power_w, dt_s, strict=True), start=1):
+        # Skiba written out on floats: the estimator runs this over the whole ride ~25
+        # times per CP fit.
+        if p > critical_power_w:
+            x -= (p - critical_power_w) / w_prime_j * h
+        elif model is WPrimeModel.SKIBA:
+            x += (critical_power_w - p) * (1 - x) / w_prime_j * h
+        else:
+            x += float(e_n_rate(x, p, critical_power_w, w_prime_j, model)) * h
+        e[k] = x = min(max(x, low), 1.0)
+    return e

@@ -17,7 +17,7 @@ from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
 from itt_planner.model.dynamics import SpatialModel
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
-from itt_planner.model.wprime import e_n_rate
+from itt_planner.model.wprime import e_n_along
 from itt_planner.ocp.bounds import U_W_MAX, V_MIN_MPS, Bounds, simple_bounds, speed_limit_mps
 from itt_planner.ocp.guess import PLAN_ARRAYS, plan_spacing_cap
 from itt_planner.ocp.horizon_settings import HorizonSettings
@@ -175,11 +175,8 @@ class HorizonWindow:
         grid = np.unique(np.concatenate([s_m, inside]))
         dt = np.diff(plan.at("t_s", grid))
         p_plus = np.maximum(plan.at("power_w", 0.5 * (grid[1:] + grid[:-1])), 0.0)
-        e = np.empty(len(grid))
-        e[0] = e0
-        for k, (p, h) in enumerate(zip(p_plus.tolist(), dt.tolist(), strict=True)):
-            rate = float(e_n_rate(e[k], p, r.critical_power_w, r.w_prime_j))
-            e[k + 1] = min(max(e[k] + rate * h, 0.0), 1.0)
+        e = e_n_along(e0, p_plus.tolist(), dt.tolist(), r.critical_power_w, r.w_prime_j,
+                      floor=0.0)
         return np.asarray(np.interp(s_m, grid, e))
 
     def bounds(self, nodes: np.ndarray, x0: np.ndarray) -> Bounds:

@@ -13,8 +13,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from itt_planner.cli.node import STACKS_SIGNAL
+from itt_planner_ros.signals import STACKS_SIGNAL
 
 #: POSIX stamp of the synthetic ride's start (2026-11-22 08:00 UTC).
 RIDE_T0_S = 1795334400.0

@@ -52,6 +52,7 @@ from itt_msgs_py.convert import (
 from itt_planner.session.config import SessionConfig
 from itt_planner.session.ride_session import RideSession
 from itt_planner_ros.ros_types import message_class, qos_profile
+from itt_planner_ros.signals import handle_signals
 
 NODE_NAME = 'itt_pacing'
 #: Parameters of the node itself; the session's come from `SessionConfig`.
@@ -246,7 +247,7 @@ def run(args: list[str] | None = None, *, namespace: str = topics.DEFAULT_NAMESP
     """
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()
-    previous = _stop_on_signals(stop)
+    previous = handle_signals(stop)
     node = None
     ready = False
     try:
@@ -270,15 +271,6 @@ def run(args: list[str] | None = None, *, namespace: str = topics.DEFAULT_NAMESP
         for sig, handler in previous.items():
             signal.signal(sig, handler)
     return result
-
-
-def _stop_on_signals(stop: threading.Event) -> dict[int, Any]:
-    """Set `stop` on SIGINT and SIGTERM (only the main thread can install handlers; a
-    caller on another thread stops the node its own way). Returns the handlers replaced."""
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-    return {sig: signal.signal(sig, lambda _sig, _frame: stop.set())
-            for sig in (signal.SIGINT, signal.SIGTERM)}
 
 
 def _spin_until(node: PacingNode, stop: threading.Event) -> None:
