@@ -43,7 +43,7 @@ import sys
 import threading
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -83,7 +83,9 @@ class CourseReplanSettings:
         min_remaining_m: closer to the finish than this the horizon covers the rest:
             the horizon's length (`HorizonSettings.horizon_m`, its default here;
             `session.config.build_engine` passes the session's).
-        ocp: settings of the solve (the full-course plan's, with a shorter CPU cap).
+        ocp: settings of the solve (the full-course plan's); its CPU cap, if it sets
+            none, is `ocp_for`'s.
+        max_cpu_s: the most CPU seconds a re-solve may take (`ocp_for`).
         backoff_within_s: a rider off a re-solved plan less than this after its
             adoption is not following the plans: the least interval between requests
             doubles (`resolve_gate`); a rider who keeps to one this long resets it.
@@ -94,14 +96,14 @@ class CourseReplanSettings:
             (the 3D within `auto_3d_max_m` of the finish, the 1D on the line before
             and where the 3D fails: `resolve_model`).
         auto_3d_max_m: under `RESOLVE_AUTO`, a rest of the course at most this long is
-            re-solved in 3D (its CPU grows with the rest; the cap above is 60 s).
+            re-solved in 3D (its CPU grows with the rest).
     """
 
     period_s: float = 30.0
     delay_s: float = 15.0
     min_remaining_m: float = HorizonSettings.horizon_m
-    # A re-solve still running after two periods is stale: 60 s of CPU at most.
-    ocp: OcpSettings = field(default_factory=lambda: OcpSettings(max_cpu_time_s=60.0))
+    ocp: OcpSettings = field(default_factory=OcpSettings)
+    max_cpu_s: float = 120.0
     # A period: the Bologna rider left each new plan 0-15 s after its adoption (15 s
     # after the request); 8 periods: a rider who keeps to none is re-solved every 4 min.
     backoff_within_s: float = 30.0
@@ -113,6 +115,24 @@ class CourseReplanSettings:
         if self.model not in RESOLVE_MODELS:
             msg = f"course re-solve model {self.model!r}: choose one of {RESOLVE_MODELS}"
             raise ValueError(msg)
+
+    def ocp_for(self, model: str, rest_m: float) -> OcpSettings:
+        """The settings of a re-solve of `rest_m` of course with `model` (`resolve_model`):
+        `ocp`, with the CPU budget a full-course solve of that model and length gets
+        (`OcpSettings.budget`: 1D 20 s + 2 s per km, 3D 60 s + 15 s per km), at most
+        `max_cpu_s`, unless `ocp` sets its own.
+
+        Why scaled: a fixed 60 s was marginal for the first re-solve on the line of a
+        long course, which has no point of its own model to start from: Sauerland's
+        from 8.0 km (91 km of 1D on the line, cold from the 3D plan) took 126 iterations,
+        41-59 s CPU, and at load ~4 stopped at 60 s after 146 (bench/RESULTS.md,
+        2026-12-03, lead, third session). 120 s at most: a plan that comes two minutes
+        late is still the plan of the rest, while the horizon paces the rider meanwhile.
+        """
+        if self.ocp.max_cpu_time_s is not None:
+            return self.ocp
+        seconds = self.ocp.budget("3d" if model == RESOLVE_3D else "1d", rest_m)[1]
+        return replace(self.ocp, max_cpu_time_s=min(seconds, self.max_cpu_s))
 
 
 #: States of a re-solve's start the rider's estimate does not measure and the solver
@@ -243,7 +263,8 @@ class CourseReplanner:
         own = self._point[1] if self._point is not None and self._point[0] is guess else None
         warm = (Warm(road_3d=self._point_3d, line=own) if on_line(guess)
                 else Warm(road_3d=own))
-        model = chosen_model(st.model, self.course.length_m - start.s_m, st.auto_3d_max_m)
+        rest_m = self.course.length_m - start.s_m
+        model = chosen_model(st.model, rest_m, st.auto_3d_max_m)
         self.last_warm = (warm.road_3d if model == RESOLVE_3D else warm.line) is not None
         line_n = None
         # The line the 1D re-solves (and the fall-back of a failed 3D one) ride: the last
@@ -254,8 +275,8 @@ class CourseReplanner:
             src = self._line_source
             line_n = np.interp(self.course.s_m, src.s_m, src.n_m)
         free = free_states(start, start_speed(rider, self.conditions, st.ocp))
-        job = (model, self.course, rider, self.conditions, st.ocp, guess, start, warm, line_n,
-               free)
+        job = (model, self.course, rider, self.conditions, st.ocp_for(model, rest_m), guess,
+               start, warm, line_n, free)
         self._pending = (stamp_s, self._waiter.submit(self._solve_in_worker, job))
         return True
 

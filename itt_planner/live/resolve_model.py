@@ -22,21 +22,21 @@ pedalling where the 3D's lean, a state, lags the turn.
 
 `RESOLVE_AUTO`, the default: the 3D where the rest of the course is at most
 `CourseReplanSettings.auto_3d_max_m` (20 km), the 1D on the line before. Why: a 3D
-re-solve's CPU grows with the rest of the course, and the worker's cap is 60 s
-(`CourseReplanSettings.ocp`): on the St John's ride (41.3 km, calibrated rider,
-bench/RESULTS.md 2026-12-02, lead) the 3D re-solves of 34-41 km took 16-93 iterations
-and one stopped at the cap after 73, while on Bologna's 16 km every 3D re-solve
-converged (8-63 iterations, 0.4-8.5 s CPU). Within 20 km of the finish the 3D's own
-corners (the lean a state, not steady) are worth its cost; before, the 1D on the line
-is within 0.5 % (median) and a third of the CPU. The St John's replay with `auto`
-(bench/RESULTS.md, 2026-12-02, lead): 45 re-solves asked, 45 adopted (29 on the line,
-16 in 3D), 0 failed, against 1 failed of 48 with the 3D alone; the wait for them 183 s
+re-solve's CPU grows with the rest of the course, and the worker's cap was 60 s then
+(now `CourseReplanSettings.ocp_for`, at most 120 s): on the St John's ride (41.3 km,
+calibrated rider, bench/RESULTS.md 2026-12-02, lead) the 3D re-solves of 34-41 km took
+16-93 iterations and one stopped at the cap after 73, while on Bologna's 16 km every 3D
+re-solve converged (8-63 iterations, 0.4-8.5 s CPU). Within 20 km of the finish the 3D's
+own corners (the lean a state, not steady) are worth its cost; before, the 1D on the
+line is within 0.5 % (median) and a third of the CPU. The St John's replay with `auto`
+(bench/RESULTS.md, 2026-12-02, lead): 45 re-solves asked, 45 adopted (29 on the line, 16
+in 3D), 0 failed, against 1 failed of 48 with the 3D alone; the wait for them 183 s
 against 1,502 s of wall, at the same load. Under `RESOLVE_AUTO` a 3D re-solve that fails
-(not converged, or its plan not verified) falls back to the 1D on the line, with the same
-guard (`meta["resolve"]["after_3d_failed"]` says so, and the engine counts it): on the
-Ardennes ride (57.4 km, calibrated rider) 2 of the 21 3D re-solves within 20 km of the
-finish failed (`Invalid_Plan` at 41.1 km, the 60 s cap at 43.7 km) and left the rider
-on an older plan.
+(not converged, or its plan not verified) falls back to the 1D on the line, with the
+same guard (`meta["resolve"]["after_3d_failed"]` says so, and the engine counts it): on
+the Ardennes ride (57.4 km, calibrated rider) 2 of the 21 3D re-solves within 20 km of
+the finish failed (`Invalid_Plan` at 41.1 km, the 60 s cap at 43.7 km) and left the
+rider on an older plan.
 """
 
 from __future__ import annotations

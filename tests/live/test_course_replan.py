@@ -195,3 +195,16 @@ def _wait(rp: CourseReplanner, timeout_s: float = 120.0) -> Plan:
             return got
         time.sleep(0.05)
     raise AssertionError("the course re-solve did not finish")
+
+
+def test_a_resolves_cpu_cap_scales_with_the_rest_of_the_course() -> None:
+    """`CourseReplanSettings.ocp_for`: the full-course budget of the model for the rest
+    (1D 20 s + 2 s per km, 3D 60 s + 15 s per km) at most `max_cpu_s`; a cap the
+    settings give is kept."""
+    st = CourseReplanSettings()
+    assert st.ocp_for("1d-line", 20_000.0).max_cpu_time_s == pytest.approx(60.0)
+    assert st.ocp_for("1d-line", 91_000.0).max_cpu_time_s == pytest.approx(st.max_cpu_s)
+    assert st.ocp_for("3d", 2_000.0).max_cpu_time_s == pytest.approx(90.0)
+    assert st.ocp_for("3d", 20_000.0).max_cpu_time_s == pytest.approx(st.max_cpu_s)
+    fixed = CourseReplanSettings(ocp=OcpSettings(max_cpu_time_s=30.0))
+    assert fixed.ocp_for("3d", 20_000.0).max_cpu_time_s == 30.0
