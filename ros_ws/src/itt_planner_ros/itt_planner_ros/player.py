@@ -298,12 +298,9 @@ class _Player:
         reader = RideLogReader(self.path, namespace=self.settings.namespace)
         rate = self.settings.rate
         clock_period_ns = int(1e9 / self.settings.clock_hz) if self._clock else 0
-        start_log_ns: int | None = None
-        start_wall_ns = next_clock_wall_ns = 0
+        start_log_ns = self._start_ns
+        start_wall_ns = next_clock_wall_ns = time.monotonic_ns()
         for record in reader.records():
-            if start_log_ns is None:
-                start_log_ns = record.log_time_ns + int(self.settings.start_offset_s * 1e9)
-                start_wall_ns = next_clock_wall_ns = time.monotonic_ns()
             if record.log_time_ns < start_log_ns:
                 continue
             key = (record.topic, record.msgtype)
