@@ -261,8 +261,10 @@ class CourseReplanner:
             return False
         self._last_request_s = stamp_s
         own = self._point[1] if self._point is not None and self._point[0] is guess else None
+        # A 3D plan in force without its own point (a failed re-solve since dropped it):
+        # the last 3D plan's point, as after plans on the line.
         warm = (Warm(road_3d=self._point_3d, line=own) if on_line(guess)
-                else Warm(road_3d=own))
+                else Warm(road_3d=own if own is not None else self._point_3d))
         rest_m = self.course.length_m - start.s_m
         model = chosen_model(st.model, rest_m, st.auto_3d_max_m)
         self.last_warm = (warm.road_3d if model == RESOLVE_3D else warm.line) is not None

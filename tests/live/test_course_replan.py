@@ -17,7 +17,8 @@ from itt_planner.live.resolve_model import Warm
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import PRESETS
 from itt_planner.model.state import RiderState
-from itt_planner.ocp.course_problem import solve_plan
+from itt_planner.ocp.cache import with_point
+from itt_planner.ocp.course_problem import solve_plan, solve_plan_point
 from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.ocp.horizon import HorizonPlanner
 from itt_planner.ocp.horizon_settings import HorizonSettings
@@ -208,3 +209,18 @@ def test_a_resolves_cpu_cap_scales_with_the_rest_of_the_course() -> None:
     assert st.ocp_for("3d", 20_000.0).max_cpu_time_s == pytest.approx(st.max_cpu_s)
     fixed = CourseReplanSettings(ocp=OcpSettings(max_cpu_time_s=30.0))
     assert fixed.ocp_for("3d", 20_000.0).max_cpu_time_s == 30.0
+
+
+def test_a_failed_resolve_leaves_the_next_one_warm(planner: HorizonPlanner) -> None:
+    """The plan in force keeps its point for the re-solves after one that failed: the
+    next re-solve from it starts from the last 3D plan's point, not cold."""
+    plan = with_point(*solve_plan_point(COURSE, RIDER, model="3d"))
+    rp = CourseReplanner(COURSE, Conditions(), CourseReplanSettings(
+        min_remaining_m=200.0, ocp=OcpSettings(max_iter=3)), deterministic=False, plan=plan)
+    try:
+        start = start_from(planner, off_plan_state(plan), S_OFF_M)
+        for stamp in (0.0, 100.0):
+            assert rp.request(stamp, RIDER, plan, start) and rp.last_warm
+            assert not _wait(rp).meta["success"]
+    finally:
+        rp.close()
