@@ -39,9 +39,10 @@ start may use `_FIRST_SHARE` of it):
 - early failure (`solver.SolveResult.gave_up_early`): the same start with a smaller
   bound push (on short courses the 3D model ended in Restoration_Failed with IPOPT's
   default push and converged in 39-64 iterations with 1e-4);
-- 1D: a cold start with the adaptive barrier never falling back to its monotone mode
-  (`solver.full_course_solver(never_monotone=True)`: the Shanghai ride's barrier
-  collapse, why there), then a cold start on a mesh of half the spacing (the 1D model on
+- 1D models (`CourseSolve.one_d`): a cold start with the adaptive barrier never
+  falling back to its monotone mode (`solver.full_course_solver(never_monotone=True)`:
+  the Shanghai ride's barrier collapse, why there), then a cold start on a mesh of half
+  the spacing (the 1D model on
   the 9 km hilly route of bench_convergence with 20 m intervals stopped at 569
   iterations; restarted on 10 m it converged in 65);
 - 3D stopped by its share of the budget: resume from the run's last primal-dual point
