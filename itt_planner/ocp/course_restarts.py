@@ -42,9 +42,8 @@ start may use `_FIRST_SHARE` of it):
 - 1D models (`CourseSolve.one_d`): a cold start with the adaptive barrier never
   falling back to its monotone mode (`solver.full_course_solver(never_monotone=True)`:
   the Shanghai ride's barrier collapse, why there), then a cold start on a mesh of half
-  the spacing (the 1D model on
-  the 9 km hilly route of bench_convergence with 20 m intervals stopped at 569
-  iterations; restarted on 10 m it converged in 65);
+  the spacing (the 1D model on the 9 km hilly route of bench_convergence with 20 m
+  intervals stopped at 569 iterations; restarted on 10 m it converged in 65);
 - 3D stopped by its share of the budget: resume from the run's last primal-dual point
   (multipliers passed back, small barrier, no push off the bounds: the solver's resume
   option set, `full_course_solver(resume=True)`) with `_RESUME_SHARE` of what is left.
