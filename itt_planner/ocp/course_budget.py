@@ -49,16 +49,14 @@ class Budget:
 
     def run(self, strategy: str, pr: CourseNlp, w0: np.ndarray, share: float = 1.0,
             bound_push: float = BOUND_PUSH, acceptable_tol: float | None = None,
-            acceptable_iter: int = 5, resume: SolveResult | None = None,
-            never_monotone: bool = False,
+            resume: SolveResult | None = None, never_monotone: bool = False,
             max_iter: int | None = None, mu_max: float | None = None,
             tol: float | None = None) -> SolveResult:
         """One solver run from `w0` with `share` of what is left of the budget, and at
         most `max_iter` iterations if given; `resume`: a previous run on `pr` to continue
         from its primal-dual point (its multipliers too) instead of a fresh start;
-        `mu_max`: a cap on the adaptive barrier, `acceptable_tol` and `acceptable_iter`:
-        IPOPT's acceptable level (`solver.full_course_solver`); `tol`: IPOPT's tolerance
-        of this run instead of the solve's."""
+        `mu_max`: a cap on the adaptive barrier (`solver.full_course_solver`); `tol`:
+        IPOPT's tolerance of this run instead of the solve's."""
         its, secs = self.left()
         its = int(its * share) if max_iter is None else min(int(its * share), max_iter)
         t0, c0 = time.perf_counter(), time.process_time()
@@ -66,7 +64,6 @@ class Budget:
                                     max_cpu_time_s=secs * share,
                                     tol=self.tol if tol is None else tol,
                                     bound_push=bound_push, acceptable_tol=acceptable_tol,
-                                    acceptable_iter=acceptable_iter,
                                     resume=resume is not None,
                                     never_monotone=never_monotone, mu_max=mu_max)
         res = solver.solve(w0, pr.p, pr.lbw, pr.ubw,

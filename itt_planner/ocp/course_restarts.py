@@ -269,17 +269,16 @@ class CourseSolve:
     def _solve_window(self, label: str, base: Plan, dense: bool, reserve: float,
                       start: Start | None, nodes: np.ndarray, share: float, cap: int
                       ) -> tuple[CourseNlp, SolveResult]:
-        """One window's runs (`_window_nlp`), `share` of the budget left each, to IPOPT's
-        acceptable level (`OcpSettings.window_acceptable_tol`): the arc guess paced for
-        the window if `dense`, else at the power of the 1D plan `base`, barrier capped
-        (`window_mu_max`); after an early failure or at `cap` iterations again with the
-        smaller bound push; capped, resumed; not converged, all once more from the other
-        guess (Sauerland's 77-89 km window failed from the 1D plan with both pushes)."""
+        """One window's runs (`_window_nlp`), `share` of the budget left each: the arc
+        guess paced for the window if `dense`, else at the power of the 1D plan `base`,
+        barrier capped (`OcpSettings.window_mu_max`); after an early failure or at `cap`
+        iterations again with the smaller bound push; capped, resumed; not converged,
+        all once more from the other guess (Sauerland's 77-89 km window failed from the
+        1D plan with both pushes)."""
         for arc in (dense, not dense):
             nlp = self._window_nlp(None if arc else base, reserve, start, nodes)
             name = f"{label}{', arc guess' if arc else ''})"
-            run = partial(self.budget.run, mu_max=None if arc else self.settings.window_mu_max,
-                          acceptable_tol=self.settings.window_acceptable_tol, acceptable_iter=1)
+            run = partial(self.budget.run, mu_max=None if arc else self.settings.window_mu_max)
             res = run(name, nlp, nlp.w_guess, share=share, max_iter=cap)
             if (res.gave_up_early or res.iterations >= cap) and self.budget.usable():
                 res = run(f"{name}, smaller bound push", nlp, nlp.w_guess,

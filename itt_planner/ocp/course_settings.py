@@ -99,15 +99,6 @@ class OcpSettings:
             15 and 20 m: Ardennes 323, 209 and 156 iterations (40, 25 and 16 s CPU),
             Shanghai 77, 49 and 102 (18, 11 and 19 s), Sauerland 61, 99 and 217 (19,
             20 and 37 s: at 20 m a plan that failed its verification, then refined).
-        window_acceptable_tol: IPOPT's acceptable level of a window's runs, met once
-            (`acceptable_iter` 1; the other acceptable tolerances IPOPT's): a window is
-            only a start for the polish, which has its own tolerance. Near their
-            optimum the windows' barrier fell below ~1e-9 and a full step put a
-            constraint 0.165 off (the same value in every run: the last window, which
-            ends at the finish, as in the polish, `window_polish_tol`), then
-            restoration and 50-145 more iterations (Ardennes' last window after errors
-            of 3e-6 to 6e-6 at iterations 97-100: 243 iterations in all;
-            bench/RESULTS.md, 2026-12-03, helper P5).
     """
 
     h_min_m: float = 1.0
@@ -139,7 +130,6 @@ class OcpSettings:
     window_mu_max: float = 0.1
     window_polish_tol: float = 1e-5
     window_h_max_1d_m: float = 15.0
-    window_acceptable_tol: float = 1e-5
 
     def budget(self, model: str, length_m: float) -> tuple[int, float]:
         """(iterations, seconds) for one solve of `length_m` metres with `model`.

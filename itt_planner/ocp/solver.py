@@ -200,7 +200,6 @@ _NEVER_MONOTONE = {"ipopt.adaptive_mu_globalization": "never-monotone-mode"}
 
 def full_course_solver(tr: Transcription, *, max_iter: int, max_cpu_time_s: float, tol: float,
                        bound_push: float, acceptable_tol: float | None = None,
-                       acceptable_iter: int = 5,
                        resume: bool = False, never_monotone: bool = False,
                        mu_max: float | None = None) -> NlpSolver:
     """The solver of one full-course attempt (`course_problem.solve_plan`).
@@ -208,13 +207,13 @@ def full_course_solver(tr: Transcription, *, max_iter: int, max_cpu_time_s: floa
     `bound_push` (= IPOPT's `bound_frac`): how far the initial point is moved inside its
     bounds; IPOPT's default 1e-2 first (1e-4 took 116 instead of 75 iterations on
     verona-like 3D), 1e-4 as a restart after an early failure (see `course_problem`).
-    `acceptable_tol`: IPOPT's acceptable level, met in `acceptable_iter` iterations in a
-    row (default: IPOPT's own 1e-6 ... with 15 acceptable iterations). The 1D model's
-    barrier is capped (`_MU_MAX_1D`), any model's at `mu_max` if given (a 3D window from
-    the 1D plan, `course_restarts`). `resume`: the run continues a previous one from its
-    primal-dual point (`_RESUME`; the caller passes the multipliers to `solve`).
-    `never_monotone`: the adaptive barrier without its fall-back to the monotone mode
-    (`_NEVER_MONOTONE`). The budget is at least one iteration and one CPU second.
+    `acceptable_tol`: IPOPT's acceptable level (default: IPOPT's own 1e-6 ... with 15
+    acceptable iterations). The 1D model's barrier is capped (`_MU_MAX_1D`), any
+    model's at `mu_max` if given (a 3D window from the 1D plan, `course_restarts`). `resume`:
+    the run continues a previous one from its primal-dual point (`_RESUME`; the caller
+    passes the multipliers to `solve`). `never_monotone`: the adaptive barrier without
+    its fall-back to the monotone mode (`_NEVER_MONOTONE`). The budget is at least one
+    iteration and one CPU second.
     """
     opts = {**_COMMON, "ipopt.max_iter": max(int(max_iter), 1),
             "ipopt.max_cpu_time": max(max_cpu_time_s, 1.0), "ipopt.tol": tol,
@@ -227,7 +226,7 @@ def full_course_solver(tr: Transcription, *, max_iter: int, max_cpu_time_s: floa
     if mu_max is not None:
         opts["ipopt.mu_max"] = mu_max
     if acceptable_tol is not None:
-        opts |= {"ipopt.acceptable_tol": acceptable_tol, "ipopt.acceptable_iter": acceptable_iter}
+        opts |= {"ipopt.acceptable_tol": acceptable_tol, "ipopt.acceptable_iter": 5}
     if resume:
         opts |= {f"ipopt.{k}": v for k, v in _RESUME.items()}
     if never_monotone:

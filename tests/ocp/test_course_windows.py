@@ -148,8 +148,7 @@ def test_a_window_at_its_iteration_cap_starts_again_with_the_smaller_bound_push(
 def test_windows_from_the_1d_plan_cap_the_barrier_and_the_polish_has_its_tolerance(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """`OcpSettings.window_mu_max` on every run of a window from the 1D plan (not from
-    the arc guess, not the polish), `window_polish_tol` on the polish alone, and
-    `window_acceptable_tol` met once on every window's run."""
+    the arc guess, not the polish), `window_polish_tol` on the polish alone."""
     calls: list[tuple[str, dict[str, Any]]] = []
     real = full_course_solver
 
@@ -160,8 +159,7 @@ def test_windows_from_the_1d_plan_cap_the_barrier_and_the_polish_has_its_toleran
     monkeypatch.setattr(course_budget, "full_course_solver", spy)
     course, rider = build_course(SHORT), PRESETS["paper"]
     settings = OcpSettings(window_min_m=0.0, window_m=700.0, window_overlap_m=300.0,
-                           window_mu_max=0.05, window_polish_tol=3e-6,
-                           window_acceptable_tol=2e-5)
+                           window_mu_max=0.05, window_polish_tol=3e-6)
     for arc_per_km, mu_max in ((1e9, 0.05), (-1.0, None)):  # from the 1D plan / arc guess
         calls.clear()
         plan = solve_plan(course, rider, model="3d", settings=dataclasses.replace(
@@ -170,10 +168,7 @@ def test_windows_from_the_1d_plan_cap_the_barrier_and_the_polish_has_its_toleran
         *windows, polish = [kw for name, kw in calls if name == "3d"]
         assert len(windows) >= 2
         assert all(kw["mu_max"] == mu_max and kw["tol"] == settings.tol for kw in windows)
-        assert all(kw["acceptable_tol"] == 2e-5 and kw["acceptable_iter"] == 1
-                   for kw in windows)
         assert polish["resume"] and polish["mu_max"] is None and polish["tol"] == 3e-6
-        assert polish["acceptable_tol"] is None
         assert all(kw["mu_max"] is None for name, kw in calls if name == "1d")
 
 
