@@ -115,18 +115,16 @@ class CourseNlp:
 
 def course_nlp(course: Course, rider: Rider, conditions: Conditions, settings: OcpSettings,
                model: str, nodes: np.ndarray, v0: float, start: Start | None,
-               guess: Plan | None, free_start: Sequence[str] = (),
-               guess_power_w: np.ndarray | None = None) -> CourseNlp:
+               guess: Plan | None, free_start: Sequence[str] = ()) -> CourseNlp:
     """The NLP of `model` on the mesh `nodes`, launched at `v0` (or from `start`), with
-    the default guess (3D: ridden at `guess_power_w` per node if given, `guess.arc_guess`)
-    or `guess` moved onto the mesh. `free_start`: states of a `start` left to the solver
-    within their simple bounds (the start's value is only their guess): what the rider's
-    estimate does not measure (`course_replan.start_from`)."""
+    the default guess or `guess` moved onto the mesh. `free_start`: states of a `start`
+    left to the solver within their simple bounds (the start's value is only their
+    guess): what the rider's estimate does not measure (`course_replan.start_from`)."""
     tr = _transcription(model, settings.wprime_model, len(nodes) - 1,
                         mesh_substeps(model, nodes), settings.jit)
     spm = tr.model
     par = ModelParams(rider, conditions, settings.w_delta, settings.w_power).vector()
-    x_guess, u_guess = initial_guess(spm, course, nodes, rider, conditions, v0, guess_power_w)
+    x_guess, u_guess = initial_guess(spm, course, nodes, rider, conditions, v0)
     x0 = x_guess[:, 0].copy()
     if start is not None:
         for name, value in start.state.items():

@@ -21,16 +21,16 @@ start may use `_FIRST_SHARE` of it):
   cold start on the full mesh forms a node or two per iteration (2026-12-01, H5). If
   the coarse run does not converge, the cold start on the full mesh as before;
 - windows first (3D, cold as above, a course longer than `OcpSettings.window_min_m`):
-  the 1D plan (`OcpSettings.window_h_max_1d_m`), then the 3D model on overlapping
-  windows of ~12 km of work (shorter among corners), each cold on its own nodes of the
-  full mesh (no coarse mesh first: bench/RESULTS.md, 2026-12-02, H3) from the arc guess
-  ridden at the 1D plan's power (barrier capped, `OcpSettings.window_mu_max`), then a
-  run on the full mesh resumed from their stitched primal-dual point (`course_windows`,
-  why there). A window that gives up early, or still runs at 1.5 times the iterations
-  of the slowest window before it (`OcpSettings.window_max_iter`), is restarted with
-  the smaller bound push below; one that still fails, from the other guess (its own
-  pacing or the 1D plan's). If the 1D plan or a window does not converge, the coarse
-  mesh first or the cold start as without;
+  the 1D plan, then the 3D model on overlapping windows of ~12 km of work (shorter
+  among corners) from it (barrier capped, `OcpSettings.window_mu_max`), each cold on
+  its own nodes of the full mesh (no coarse mesh first: on Ardennes that failed in 2 of
+  4 windows of 15 km, and a window's own run costs less than a coarse and a fine one,
+  bench/RESULTS.md, 2026-12-02, H3), then a run on the full mesh resumed from their
+  stitched primal-dual point (`course_windows`, why there). A window that gives up
+  early, or still runs at 1.5 times the iterations of the slowest window before it
+  (`OcpSettings.window_max_iter`), is restarted with the smaller bound push below; one
+  that still fails, from the other guess (the arc guess or the 1D plan). If the 1D plan
+  or a window does not converge, the coarse mesh first or the cold start as without;
 - early failure (`solver.SolveResult.gave_up_early`): the same start with a smaller
   bound push (on short courses the 3D model ended in Restoration_Failed with IPOPT's
   default push and converged in 39-64 iterations with 1e-4);
@@ -99,6 +99,7 @@ from itt_planner.ocp.course_nlp import (
 from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.course_windows import (
     end_reserve,
+    plan_between,
     plan_windows,
     stitch,
     window_corners_per_km,
@@ -234,7 +235,7 @@ class CourseSolve:
         """Solve the 1D plan, then the 3D model on overlapping windows from it
         (`course_windows`), then resume on `prob` from their stitched point; None when
         the 1D plan or a window did not converge (the caller then goes on as without)."""
-        base = self._plan_1d("1d plan for the windows", 0.25, self.settings.window_h_max_1d_m)
+        base = self._plan_1d("1d plan for the windows", 0.25)
         if not base.meta.get("success"):
             return None
         st, run, usable = self.settings, self.budget.run, self.budget.usable
@@ -251,8 +252,8 @@ class CourseSolve:
                 win.first - wins[k - 1].first, float(nodes[0]))
             reserve = end_reserve(base, float(nodes[-1]), self.rider.w_prime_j,
                                   st.e_final_min, last=k == len(wins) - 1)
-            # Among dense corners the arc guess paced for the window alone, elsewhere at
-            # the 1D plan's power (`OcpSettings.window_arc_guess_corners_per_km`).
+            # Among dense corners the default (arc) guess, elsewhere the 1D plan (module
+            # docstring: the 1D plan's corner speeds do not match the guess's lean there).
             dense = (window_corners_per_km(nodes, apex) > st.window_arc_guess_corners_per_km)
             label = f"window {k + 1}/{len(wins)} ({nodes[0] / 1e3:.1f}-{nodes[-1] / 1e3:.1f} km"
             # Each window gets an equal share of what is left, one share kept for the polish.
@@ -269,12 +270,13 @@ class CourseSolve:
     def _solve_window(self, label: str, base: Plan, dense: bool, reserve: float,
                       start: Start | None, nodes: np.ndarray, share: float, cap: int
                       ) -> tuple[CourseNlp, SolveResult]:
-        """One window's runs (`_window_nlp`), `share` of the budget left each: the arc
-        guess paced for the window if `dense`, else at the power of the 1D plan `base`,
-        barrier capped (`OcpSettings.window_mu_max`); after an early failure or at `cap`
-        iterations again with the smaller bound push; capped, resumed; not converged,
-        all once more from the other guess (Sauerland's 77-89 km window failed from the
-        1D plan with both pushes)."""
+        """One window's runs (`_window_nlp`), `share` of the budget left each: from the
+        arc guess if `dense`, else from the 1D plan `base` with the barrier capped
+        (`OcpSettings.window_mu_max`); after an early failure or at `cap` iterations
+        (`course_windows.window_iter_cap`) again with the smaller bound push; capped,
+        resumed; still not converged, all that once more from the other guess (the
+        Sauerland ride's window at 77-89 km, calibrated rider, ended Restoration_Failed
+        from the 1D plan with both bound pushes)."""
         for arc in (dense, not dense):
             nlp = self._window_nlp(None if arc else base, reserve, start, nodes)
             name = f"{label}{', arc guess' if arc else ''})"
@@ -304,21 +306,20 @@ class CourseSolve:
     def _window_nlp(self, base: Plan | None, reserve: float, start: Start | None,
                     nodes: np.ndarray) -> CourseNlp:
         """A window's NLP on `nodes`: from `start` (the course's start if None), leaving
-        `reserve` of W' at its end, from the default (arc) guess ridden at the crank
-        power of the 1D plan `base` (paced for the window alone if None)."""
-        power = None if base is None else np.maximum(base.at("power_w", nodes), 0.0)
+        `reserve` of W' at its end, from the 1D plan `base` as its guess (the default
+        guess if None)."""
+        guess = None if base is None else plan_between(base, float(nodes[0]), float(nodes[-1]))
         return course_nlp(self.course, self.rider, self.conditions,
                           dataclasses.replace(self.settings, e_final_min=reserve), "3d", nodes,
-                          self.v0 if start is None else start.state["v"], start, None,
-                          guess_power_w=power)
+                          self.v0 if start is None else start.state["v"], start, guess)
 
-    def _plan_1d(self, strategy: str, share: float, h_max_1d_m: float) -> Plan:
-        """The 1D plan at spacing <= `h_max_1d_m` (`share` of the CPU left at most), an attempt."""
+    def _plan_1d(self, strategy: str, share: float) -> Plan:
+        """The 1D plan of the same solve (`share` of the CPU left at most), an attempt."""
         _, secs = self.budget.left()
         st, left_m = self.settings, self.course.length_m - self.start_m
         cpu0 = time.process_time()
-        base = self.solve_1d(dataclasses.replace(st, max_iter=None, h_max_1d_m=h_max_1d_m,
-            max_cpu_time_s=min(secs * share, st.budget("1d", left_m)[1])))
+        base = self.solve_1d(dataclasses.replace(
+            st, max_iter=None, max_cpu_time_s=min(secs * share, st.budget("1d", left_m)[1])))
         self.budget.attempts.append({
             "strategy": strategy, "status": base.solver_status,
             "outcome": PlanStatus.of(base.solver_status).value, "iterations": base.iterations,
@@ -328,7 +329,7 @@ class CourseSolve:
 
     def _warm_from_1d(self, prob: CourseNlp, res: SolveResult) -> SolveResult:
         """Solve the 1D plan (a third of the CPU left at most) and start from it."""
-        base = self._plan_1d("1d plan for a warm start", 1 / 3, self.settings.h_max_1d_m)
+        base = self._plan_1d("1d plan for a warm start", 1 / 3)
         if base.meta.get("success") and self.budget.usable():
             warm = self.nlp(prob.nodes, base)
             return self.budget.run("warm from 1d", warm, warm.w_guess)

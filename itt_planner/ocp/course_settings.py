@@ -92,13 +92,6 @@ class OcpSettings:
             iterations of ~1 s CPU each, still running (Ardennes, from the windows of
             two other settings, after reaching 7e-6 and 5.5e-6 of error; at 1e-5: 17
             iterations; bench/RESULTS.md, 2026-12-03, helper P4).
-        window_h_max_1d_m: the coarsest mesh interval of the 1D plan the windows start
-            from (`h_max_1d_m` for every other 1D plan): the windows take its crank
-            power (their guess, `guess.arc_guess`) and its W' at their ends, not its
-            speeds. The 1D plan alone (bench/RESULTS.md, 2026-12-03, helper P5) at 10,
-            15 and 20 m: Ardennes 323, 209 and 156 iterations (40, 25 and 16 s CPU),
-            Shanghai 77, 49 and 102 (18, 11 and 19 s), Sauerland 61, 99 and 217 (19,
-            20 and 37 s: at 20 m a plan that failed its verification, then refined).
     """
 
     h_min_m: float = 1.0
@@ -129,7 +122,6 @@ class OcpSettings:
     window_iter_factor: float = 1.5
     window_mu_max: float = 0.1
     window_polish_tol: float = 1e-5
-    window_h_max_1d_m: float = 15.0
 
     def budget(self, model: str, length_m: float) -> tuple[int, float]:
         """(iterations, seconds) for one solve of `length_m` metres with `model`.

@@ -40,6 +40,7 @@ there, above the 60 s of issue 14.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -122,6 +123,16 @@ def end_reserve(base: Plan, s_m: float, w_prime_j: float, final_min: float,
     if last:
         return final_min
     return float(np.clip(base.at("w_prime_j", s_m) / w_prime_j, 0.0, 1.0))
+
+
+def plan_between(plan: Plan, a_m: float, b_m: float) -> Plan:
+    """`plan` from `a_m` to `b_m` (its nodes between them and both ends, every per-node
+    array interpolated there): a window's guess, which must span the window's mesh."""
+    s = plan.s_m
+    new_s = np.concatenate([[a_m], s[(s > a_m) & (s < b_m)], [b_m]])
+    arrays = {f.name: np.interp(new_s, s, value) for f in dataclasses.fields(plan)
+              if isinstance(value := getattr(plan, f.name), np.ndarray) and value.shape == s.shape}
+    return dataclasses.replace(plan, **arrays)
 
 
 def stitch(layout: Layout, windows: list[Window], runs: list[SolveResult]) -> SolveResult:

@@ -98,12 +98,10 @@ def speed_guess(course: Course, nodes: np.ndarray, rider: Rider, conditions: Con
 
 
 def initial_guess(model: SpatialModel, course: Course, nodes: np.ndarray, rider: Rider,
-                  conditions: Conditions, v0: float, power_w: np.ndarray | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """States (nx x N+1) and controls (nu x N) to start the NLP from; `power_w`: the
-    3D guess's crank power per node (`arc_guess`)."""
+                  conditions: Conditions, v0: float) -> tuple[np.ndarray, np.ndarray]:
+    """States (nx x N+1) and controls (nu x N) to start the NLP from."""
     if model.name == "3d":
-        return arc_guess(model, course, nodes, rider, conditions, v0, power_w)
+        return arc_guess(model, course, nodes, rider, conditions, v0)
     # The 1D on a line that knows its corners ("1dline") slows for them; the plain 1D
     # ignores them (model.md section 6).
     v = speed_guess(course, nodes, rider, conditions, v0, corners=model.name != "1d")
@@ -242,13 +240,10 @@ def _line(course: Course, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np
 
 
 def arc_guess(model: SpatialModel, course: Course, nodes: np.ndarray, rider: Rider,
-              conditions: Conditions, v0: float, power_w: np.ndarray | None = None
-              ) -> tuple[np.ndarray, np.ndarray]:
+              conditions: Conditions, v0: float) -> tuple[np.ndarray, np.ndarray]:
     """The 3D guess: a quasi-steady ride (`_arc_ride`) paced so that W' is spent by
-    the finish (or at the crank power `power_w` per node if given: a 1D plan's, whose
-    W' allocation a window of a long course cannot see, `course_windows`), on the
-    least-curvature line (`_line`), with the steady lean and steering of that line and
-    the rates that join the nodes.
+    the finish, on the least-curvature line (`_line`), with the steady lean and
+    steering of that line and the rates that join the nodes.
 
     The cold guess of earlier (speed at CP capped at 0.7 of the lateral limit, W_n at CP
     everywhere, E_n falling linearly) broke C15 at every corner and the continuity of
@@ -277,9 +272,9 @@ def arc_guess(model: SpatialModel, course: Course, nodes: np.ndarray, rider: Rid
     stretch = offset_stretch(n, alpha, kappa)
     beta = path_slope_rad(course.at("beta_rad", nodes), n, alpha, kappa)
     grade = np.tan(beta)
-    ride = _arc_ride(nodes, rider, conditions, v0, _pacing_w(lo, grade, rider, conditions)
-                     if power_w is None else power_w, kp, beta, stretch)
-    if power_w is None and np.min(ride[2]) > _ARC_E_MIN:  # bisect: W' spent by the finish
+    ride = _arc_ride(nodes, rider, conditions, v0, _pacing_w(lo, grade, rider, conditions),
+                     kp, beta, stretch)
+    if np.min(ride[2]) > _ARC_E_MIN:  # bisect on the pacing power: W' spent by the finish
         for _ in range(_ARC_BISECTIONS):
             mid = 0.5 * (lo + hi)
             trial = _arc_ride(nodes, rider, conditions, v0,

@@ -19,7 +19,6 @@ from itt_planner.course.loader import load_course
 from itt_planner.model.rider import PRESETS
 from itt_planner.ocp import course_budget, course_restarts
 from itt_planner.ocp.course_budget import Budget
-from itt_planner.ocp.course_nlp import course_nlp
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.ocp.course_windows import (
@@ -170,44 +169,6 @@ def test_windows_from_the_1d_plan_cap_the_barrier_and_the_polish_has_its_toleran
         assert all(kw["mu_max"] == mu_max and kw["tol"] == settings.tol for kw in windows)
         assert polish["resume"] and polish["mu_max"] is None and polish["tol"] == 3e-6
         assert all(kw["mu_max"] is None for name, kw in calls if name == "1d")
-
-
-def test_windows_ride_the_arc_guess_at_the_power_of_a_coarser_1d_plan(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    """The 1D plan of the windows on its own spacing (`window_h_max_1d_m`, coarser than
-    the 1D model's `h_max_1d_m`); a window from it starts from the arc guess ridden at
-    its crank power (`guess_power_w`), one among dense corners from the arc guess paced
-    on its own."""
-    calls: list[tuple[int, Any, np.ndarray | None]] = []  # 3D NLPs: nodes, guess, power
-    real = course_nlp
-
-    def spy(*args: Any, **kwargs: Any) -> Any:
-        if args[4] == "3d":
-            calls.append((len(args[5]), args[8], kwargs.get("guess_power_w")))
-        return real(*args, **kwargs)
-
-    monkeypatch.setattr(course_restarts, "course_nlp", spy)
-    course, rider = build_course(SHORT), PRESETS["paper"]
-    alone = solve_plan(course, rider, model="1d")
-    settings = OcpSettings(window_min_m=0.0, window_m=700.0, window_overlap_m=300.0,
-                           window_h_max_1d_m=40.0)
-    for arc_per_km in (1e9, -1.0):  # from the 1D plan / arc guess
-        calls.clear()
-        plan = solve_plan(course, rider, model="3d", settings=dataclasses.replace(
-            settings, window_arc_guess_corners_per_km=arc_per_km))
-        assert plan.meta["success"], plan.meta["attempts"]
-        first = plan.meta["attempts"][0]
-        assert first["strategy"] == "1d plan for the windows"
-        assert first["n_nodes"] < alone.n_nodes
-        full = max(n for n, _, _ in calls)  # the course's NLP, the polish's
-        windows = [(guess, power) for n, guess, power in calls if n < full]
-        assert len(windows) >= 2
-        for guess, power in windows:
-            assert guess is None  # no plan as the guess: the arc guess
-            if arc_per_km > 0:
-                assert power is not None and np.all(power >= 0.0) and np.max(power) > 0.0
-            else:
-                assert power is None
 
 
 def test_a_window_may_run_half_again_the_iterations_of_the_slowest_one_before_it() -> None:

@@ -52,24 +52,3 @@ def test_arc_guess_keeps_c15_c16_and_spends_w_prime() -> None:
     assert np.all(row["n"][before_turn_in] < -1.5)
     corner = np.abs(NODES - NODES[hairpin]) < 40
     assert np.max(row["n"][corner]) == pytest.approx(4.0 - margin)
-
-
-@pytest.mark.parametrize("share_of_cp", [0.9, 1.2])
-def test_arc_guess_rides_at_a_given_power(share_of_cp: float) -> None:
-    """Given a crank power per node (a window of a long course: its 1D plan's), the guess
-    pedals at it instead of pacing W' to 0 by the finish, still within C15/C16: below CP
-    it spends no W', above it some, not all."""
-    power = np.full(len(NODES), share_of_cp * RIDER.critical_power_w)
-    x, _ = arc_guess(MODEL, COURSE, NODES, RIDER, Conditions(), 3.0, power_w=power)
-    par = ModelParams(RIDER, Conditions()).vector()
-    path = np.asarray(MODEL.path.map(len(NODES))(x, np.zeros((4, len(NODES))), par))
-    assert np.all(path <= 1e-9), "the guess breaks C16 or C15"
-    w_n, e_n = x[MODEL.index("w_n")], x[MODEL.index("e_n")]
-    climb = (NODES > 100) & (NODES < 400)
-    assert np.median(w_n[climb]) * RIDER.max_power_w == pytest.approx(power[0], rel=0.01)
-    if share_of_cp < 1:
-        assert np.all(e_n == 1.0)
-    else:
-        assert 0.1 < e_n[-1] < 0.9
-    paced, _ = arc_guess(MODEL, COURSE, NODES, RIDER, Conditions(), 3.0)
-    assert paced[MODEL.index("e_n")][-1] < 0.1  # its own pacing spends W'
