@@ -59,17 +59,18 @@ def e_n_along(e0: float, power_w: Sequence[float], dt_s: Sequence[float],
     `dt_s[k]` (E9, one Euler step each: keep the steps short, ~1 s, over which W'
     changes by < 1 %). Capped at 1 (full); at `floor` from below if given, else free to
     run below zero (how the estimator sees a CP set too high)."""
-    e = np.empty(len(dt_s) + 1)
-    e[0] = x = float(e0)
+    x = float(e0)
+    out = [x]
     low = -np.inf if floor is None else floor
-    for k, (p, h) in enumerate(zip(power_w, dt_s, strict=True), start=1):
-        # Skiba written out on floats: the estimator runs this over the whole ride ~25
-        # times per CP fit.
+    # Written out on floats, each step clipped only on the side it moves to (the same
+    # as clipping to [floor, 1] from a start within it): the estimator runs this over
+    # the whole ride ~25 times per CP fit.
+    for p, h in zip(power_w, dt_s, strict=True):
         if p > critical_power_w:
-            x -= (p - critical_power_w) / w_prime_j * h
+            x = max(x - (p - critical_power_w) / w_prime_j * h, low)
         elif model is WPrimeModel.SKIBA:
-            x += (critical_power_w - p) * (1 - x) / w_prime_j * h
+            x = min(x + (critical_power_w - p) * (1 - x) / w_prime_j * h, 1.0)
         else:
-            x += float(e_n_rate(x, p, critical_power_w, w_prime_j, model)) * h
-        e[k] = x = min(max(x, low), 1.0)
-    return e
+            x = min(x + float(e_n_rate(x, p, critical_power_w, w_prime_j, model)) * h, 1.0)
+        out.append(x)
+    return np.array(out)
