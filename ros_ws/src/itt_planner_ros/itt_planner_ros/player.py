@@ -222,8 +222,8 @@ class _Player:
                 channel, known[channel.topic].qos if channel.topic in known else DEFAULT_QOS)
         self._clock = (node.create_publisher(Clock, CLOCK_TOPIC, CLOCK_QOS)
                        if settings.clock_hz > 0 else None)
-        self._hold_period_s = min(1.0 / settings.clock_hz if self._clock else HOLD_STEP_S,
-                                  HOLD_STEP_S)
+        self._hold_period_s = (min(1.0 / settings.clock_hz, HOLD_STEP_S) if self._clock
+                               else HOLD_STEP_S)
         absent = sorted(set(settings.topics) - {c.topic for c in channels})
         if absent:
             log.warning('%s: no messages on %s in this log', path, ', '.join(absent))
