@@ -304,6 +304,12 @@ def arc_guess(model: SpatialModel, course: Course, nodes: np.ndarray, rider: Rid
     return x, u
 
 
+def plan_rows(plan: Plan) -> set[str]:
+    """The states and controls a plan has values of (`plan_guess`): a 1D plan has no
+    lateral states and no steering."""
+    return set(STATES_1D + CONTROLS_1D) if plan.model == "1d" else set(PLAN_ARRAYS)
+
+
 def plan_guess(model: SpatialModel, plan: Plan, nodes: np.ndarray, x: np.ndarray,
                u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """An initial guess taken from an existing plan, moved onto `nodes`.
@@ -325,7 +331,7 @@ def plan_guess(model: SpatialModel, plan: Plan, nodes: np.ndarray, x: np.ndarray
         msg = (f"the guess spans {plan.s_m[0]:.0f}-{plan.s_m[-1]:.0f} m, the mesh "
                f"{nodes[0]:.0f}-{nodes[-1]:.0f} m: a plan of another course?")
         raise SolveError(msg, status="invalid_input")
-    has = set(STATES_1D + CONTROLS_1D) if plan.model == "1d" else set(PLAN_ARRAYS)
+    has = plan_rows(plan)
     x, u = x.copy(), u.copy()
     for i, name in enumerate(model.states):
         if name in has:
