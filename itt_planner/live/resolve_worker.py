@@ -15,14 +15,21 @@ import signal
 import sys
 import threading
 import time
+from pathlib import Path
 from typing import IO, Any
 
 from itt_planner.errors import SolveError
 from itt_planner.live.resolve_model import LineCache, solve_rest
 
+#: Where the owner imported this package from: first on the worker's path. `python -c`
+#: puts its working directory first, so a worker started in another checkout of the
+#: project ran that checkout's solver (the replay benchmarks from a worktree ran
+#: the main tree's re-solves: bench/RESULTS.md, 2026-12-03, fourth session).
+PACKAGE_ROOT = str(Path(__file__).resolve().parents[2])
 #: The worker's program (`python -c`). Not `python -m` this module: the package imports
 #: it first, and runpy would run it a second time as `__main__` (a warning on stderr).
-WORKER_PROGRAM = f"import sys; from {__name__} import worker_main; worker_main(int(sys.argv[1]))"
+WORKER_PROGRAM = (f"import sys; sys.path.insert(0, {PACKAGE_ROOT!r}); "
+                  f"from {__name__} import worker_main; worker_main(int(sys.argv[1]))")
 
 
 def send(pipe: IO[bytes], obj: object) -> None:

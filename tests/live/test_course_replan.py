@@ -5,8 +5,12 @@ start taken from the rider's state, a re-solve from mid-course in the worker pro
 from __future__ import annotations
 
 import dataclasses
+import os
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 from support.courses import hairpin
@@ -14,6 +18,7 @@ from support.courses import hairpin
 from itt_planner.errors import SolveError
 from itt_planner.live.course_replan import CourseReplanner, CourseReplanSettings, start_from
 from itt_planner.live.resolve_model import Warm
+from itt_planner.live.resolve_worker import WORKER_PROGRAM
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import PRESETS
 from itt_planner.model.state import RiderState
@@ -224,3 +229,18 @@ def test_a_failed_resolve_leaves_the_next_one_warm(planner: HorizonPlanner) -> N
             assert not _wait(rp).meta["success"]
     finally:
         rp.close()
+
+
+def test_the_worker_runs_the_owners_code_whatever_its_directory(tmp_path: Path) -> None:
+    """`python -c` puts its working directory first on the path: a worker started in
+    another checkout imported that checkout's solver. Here the directory holds a package
+    of the same name that refuses to import; the worker still starts (and ends with its
+    input)."""
+    decoy = tmp_path / "itt_planner"
+    decoy.mkdir()
+    (decoy / "__init__.py").write_text('raise ImportError("the decoy package")\n')
+    done = subprocess.run([sys.executable, "-c", WORKER_PROGRAM, str(os.getpid())],
+                          cwd=tmp_path, input=b"", capture_output=True, timeout=120,
+                          check=False)
+    assert done.returncode == 0, done.stderr.decode()
+    assert "decoy" not in done.stderr.decode()
