@@ -71,6 +71,15 @@ def test_a_perturbed_power_trace_is_flagged(hill_plan: Plan) -> None:
     assert 300 <= ver.worst_s_m <= HILL.length_m
 
 
+def test_a_non_finite_command_fails_as_a_non_finite_replay(hill_plan: Plan) -> None:
+    """A NaN in the plan's command is not replayed as 0 W (CasADi's fmax(NaN, 0) is 0):
+    the replay is non-finite and the plan refused, without an exception."""
+    w_n = hill_plan.w_n.copy()
+    w_n[len(w_n) // 2] = np.nan
+    ver = verify_plan(dataclasses.replace(hill_plan, w_n=w_n), HILL, RIDER)
+    assert not ver.verified and ver.worst == "non-finite replay"
+
+
 def test_rest_and_sprint_is_flagged_and_infeasible(hill_plan: Plan) -> None:
     """The issue's artefact: brake to 0.5 m/s, then 0.5 -> 258 m/s within one 10 m
     interval. The replay finds the plan's speed impossible, and the transcription's
