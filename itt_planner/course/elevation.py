@@ -41,6 +41,8 @@ from itt_planner.course.track_files import Recording
 from itt_planner.errors import CourseError
 
 SOURCES = ("auto", "device", "smoothed", "route", "mix")
+#: Below this share of fixes with an altitude, the interpolation between them is reported.
+_MIN_ALTITUDE_SHARE = 0.9
 
 
 @dataclass(frozen=True)
@@ -70,15 +72,22 @@ AltitudeFit = Callable[[np.ndarray, np.ndarray, float], np.ndarray]
 def build_profile(s: np.ndarray, x: np.ndarray, y: np.ndarray, origin: GeoOrigin,
                   device: tuple[np.ndarray, np.ndarray], route: Recording | None,
                   options: ElevationOptions, fit: AltitudeFit, scale_m: float,
-                  ) -> tuple[np.ndarray, dict[str, Any]]:
+                  device_share: float = 1.0) -> tuple[np.ndarray, dict[str, Any]]:
     """The chosen z(s) on the grid `s` and the report of every source and check.
 
-    `device` is (arc length, altitude) of the ride's fixes; `fit` the course's altitude
-    smoothing; `scale_m` its normal smoothing length.
+    `device` is (arc length, altitude) of the ride's fixes, `device_share` the share of
+    them that had an altitude in the file (the rest interpolated); `fit` the course's
+    altitude smoothing; `scale_m` its normal smoothing length.
+
+    A track without altitude (none recorded, or one constant value: a route planner's
+    export without a terrain model) gives a flat device profile: `auto` then takes the
+    route's altitude if there is one, else the flat profile with a warning saying so.
 
     Raises:
-        CourseError: `route` or `mix` asked for without a route that has altitude.
+        CourseError: `route` or `mix` asked for without a route that has altitude;
+            `device`, `smoothed` or `mix` asked for on a track without altitude.
     """
+    missing = _missing_altitude(device[1], device_share)
     profiles: dict[str, np.ndarray] = {
         "device": fit(device[0], device[1], scale_m),
         "smoothed": fit(device[0], device[1], options.smoothed_scale_m),
@@ -93,12 +102,21 @@ def build_profile(s: np.ndarray, x: np.ndarray, y: np.ndarray, origin: GeoOrigin
                             "lie on the course; its altitude is not used")
     source = options.source
     if source == "auto":
-        source = "mix" if "route" in profiles else "device"
+        source = ("route" if missing else "mix") if "route" in profiles else "device"
     if source in ("route", "mix") and "route" not in profiles:
         raise CourseError(f"elevation source {source!r} needs a route with altitude on the "
                           "course (--route)")
+    if missing and options.source in ("device", "smoothed", "mix"):
+        raise CourseError(f"elevation source {options.source!r}: the track has {missing}; "
+                          "give a route with altitude (--route, elevation route)")
+    if missing and source == "device":
+        warnings.append(f"the track has {missing}: the course is FLAT; give a route with "
+                        "altitude (--route) for its climbs and descents")
+    elif not missing and device_share < _MIN_ALTITUDE_SHARE:
+        warnings.append(f"the track has no altitude at {100 * (1 - device_share):.0f} % of "
+                        "its fixes: interpolated between the others")
     disagreement = None
-    if "route" in profiles:
+    if "route" in profiles and not missing:
         profiles["mix"] = mix_profiles(s, profiles["device"], profiles["route"], options)
         disagreement = compare(s, profiles["device"], profiles["route"], options.tolerance_m)
         if disagreement["max_m"] > options.tolerance_m:
@@ -118,10 +136,21 @@ def build_profile(s: np.ndarray, x: np.ndarray, y: np.ndarray, origin: GeoOrigin
         for f in suspects)
     report = {
         "source": source, "requested": options.source, "tolerance_m": options.tolerance_m,
+        "device_altitude": {"share": round(device_share, 4), "missing": missing},
         "profiles": {k: _profile_stats(s, v) for k, v in profiles.items()},
         "disagreement": disagreement, "suspect_grades": suspects, "warnings": warnings,
     }
     return z, report
+
+
+def _missing_altitude(z: np.ndarray, share: float) -> str | None:
+    """Why the track's altitude is no altitude (None if it is one): none recorded, or
+    the same value at every fix (a route exported without a terrain model writes 0)."""
+    if share == 0:
+        return "no altitude"
+    if len(z) and float(np.ptp(z)) == 0.0:
+        return f"the same altitude ({float(z[0]):.0f} m) at every fix"
+    return None
 
 
 def route_on_course(route: Recording, s: np.ndarray, x: np.ndarray, y: np.ndarray,

@@ -142,7 +142,7 @@ def fit_course(rec: Recording, settings: FitSettings = FitSettings(),
     try:
         z, elevation = build_profile(s, x, y, track.origin, (s_pts, track.z_m),
                                      options.trim.route, options.elevation, fit,
-                                     settings.altitude_scale_m)
+                                     settings.altitude_scale_m, track.altitude_share)
         width, width_report = _road_width(s, options)
     except CourseError as err:
         raise CourseError(f"{rec.path}: {err}") from None
@@ -365,8 +365,11 @@ def _fit_altitude(s_pts: np.ndarray, z_pts: np.ndarray, length_m: float, closed:
                   st: FitSettings) -> BSpline:
     """Smoothing spline z(s) with a long smoothing length (altitude jitters by metres).
 
-    Closed loops are wrapped like the plan view so the profile joins at the seam.
+    Closed loops are wrapped like the plan view so the profile joins at the seam (a
+    point at the loop's length is its start: a route's last point often lands there).
     """
+    if closed:
+        s_pts = np.mod(s_pts, length_m)
     order = np.argsort(s_pts, kind="stable")
     s, z = s_pts[order], z_pts[order]
     uniq = np.concatenate([[True], np.diff(s) > 1e-3])

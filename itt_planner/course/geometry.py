@@ -188,7 +188,7 @@ class Course:
             "name": self.name,
             "length_m": round(self.length_m, 1),
             "gain_m": round(float(dz[dz > 0].sum()), 1),
-            "loss_m": round(float(-dz[dz < 0].sum()), 1),
+            "loss_m": round(abs(float(dz[dz < 0].sum())), 1),  # abs: never -0.0
             "max_grade": round(float(grade.max()), 4),
             "min_grade": round(float(grade.min()), 4),
             "n_corners": len(self.corners),

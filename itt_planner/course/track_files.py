@@ -1,4 +1,5 @@
-"""Read GPS track and ride files (GPX, TCX, FIT, CSV) into one record type.
+"""Read GPS track and ride files (GPX tracks and routes, TCX activities and courses, FIT,
+CSV) into one record type.
 
 Courses use only the positions; ride import also uses the stamps, speed and power.
 Parsing is left to well-kept libraries (gpxpy, tcxreader, fitdecode); this module only
@@ -117,10 +118,23 @@ def _read_gpx(path: Path) -> Recording:
 
 
 def _read_tcx(path: Path) -> Recording:
-    from tcxreader.tcxreader import TCXReader  # noqa: PLC0415
+    """An activity, or a course (Garmin Connect's route export: `<Courses>`, which
+    tcxreader's `read` skips; its own trackpoint parser reads those points)."""
+    import xml.etree.ElementTree as ET  # noqa: PLC0415
 
-    ex = TCXReader().read(str(path))
+    from tcxreader.tcx_track_point import TCXTrackPoint  # noqa: PLC0415
+    from tcxreader.tcxreader import GARMIN_XML_SCHEMA, TCXReader  # noqa: PLC0415
+
+    reader = TCXReader()
+    ex = reader.read(str(path))
     tps = ex.trackpoints or []
+    if not tps:
+        root = ET.parse(path).getroot()
+        for el in root.iterfind(f"{GARMIN_XML_SCHEMA}Courses/{GARMIN_XML_SCHEMA}Course/"
+                                f"{GARMIN_XML_SCHEMA}Track/{GARMIN_XML_SCHEMA}Trackpoint"):
+            tp = TCXTrackPoint(tpx_ext={})
+            reader.trackpoint_parser(tp, el)
+            tps.append(tp)
     return Recording(
         path=path, sha256=file_sha256(path),
         lat_deg=_arr([tp.latitude for tp in tps]), lon_deg=_arr([tp.longitude for tp in tps]),

@@ -1,0 +1,109 @@
+"""Courses from the files a route planner exports: few points (dense in bends, one per long
+straight), no altitude or a constant one, Garmin's course TCX, a route laid on a loop."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pymap3d
+import pytest
+
+from itt_planner.course.elevation import ElevationOptions
+from itt_planner.course.fit import CourseOptions, fit_course
+from itt_planner.course.track_clean import clean_fixes
+from itt_planner.course.track_files import Recording, read_recording
+from itt_planner.course.trim import TrimOptions
+from itt_planner.errors import CourseError
+
+LAT0, LON0 = 45.4, 11.0
+RADIUS_M = 20.0
+
+
+def _route_xy() -> tuple[np.ndarray, np.ndarray, float]:
+    """A map-drawn route: 600 m straight (its two ends only), a 90 deg right bend of
+    20 m radius (a point every 5 m), 800 m straight (ends only); and its true length."""
+    arc = np.linspace(0.0, math.pi / 2, int(RADIUS_M * math.pi / 2 / 5.0) + 1)
+    bend_x, bend_y = 600.0 + RADIUS_M * np.sin(arc), -RADIUS_M * (1 - np.cos(arc))
+    x = np.concatenate([[0.0], bend_x, [bend_x[-1]]])
+    y = np.concatenate([[0.0], bend_y, [bend_y[-1] - 800.0]])
+    return x, y, 600.0 + RADIUS_M * math.pi / 2 + 800.0
+
+
+def _recording(path: Path, x: np.ndarray, y: np.ndarray, ele: np.ndarray) -> Recording:
+    lat, lon, _ = pymap3d.enu2geodetic(x, y, np.zeros_like(x), LAT0, LON0, 0.0)
+    return Recording(path=path, sha256="0" * 64, lat_deg=np.asarray(lat, float),
+                     lon_deg=np.asarray(lon, float), ele_m=np.asarray(ele, float))
+
+
+def test_a_route_drawn_on_a_map_keeps_every_point_and_its_length(tmp_path: Path) -> None:
+    # Without stamps a 600 m step after 5 m ones looked like a GPS jump, and the bend's
+    # first points went as a spike; the 5-fix average of the distance cut the bend.
+    x, y, length = _route_xy()
+    rec = _recording(tmp_path / "route.gpx", x, y, np.linspace(100.0, 90.0, len(x)))
+    track = clean_fixes(rec)
+    assert len(track) == len(x)
+    assert track.distance_m[-1] == pytest.approx(length, rel=0.002)
+    course = fit_course(rec)
+    assert course.length_m == pytest.approx(length, rel=0.01)
+    assert [c.direction for c in course.corners] == ["right"]
+    assert course.corners[0].min_radius_m == pytest.approx(RADIUS_M, rel=0.3)
+    assert course.build["trim"]["finish_m"] == pytest.approx(length, rel=0.002)
+
+
+@pytest.mark.parametrize(("ele", "missing"), [
+    (math.nan, "no altitude"), (0.0, "the same altitude (0 m) at every fix")])
+def test_a_route_without_altitude_is_flat_and_says_so(tmp_path: Path, ele: float,
+                                                      missing: str) -> None:
+    x, y, _ = _route_xy()
+    rec = _recording(tmp_path / "flat.gpx", x, y, np.full(len(x), ele))
+    course = fit_course(rec)
+    info = course.summary()
+    assert info["build"]["elevation"]["device_altitude"]["missing"] == missing
+    assert any("FLAT" in w for w in info["warnings"]), info["warnings"]
+    assert info["gain_m"] == 0 and math.copysign(1.0, info["loss_m"]) == 1.0  # never -0
+    with pytest.raises(CourseError,
+                       match=r"flat\.gpx: elevation source 'device': the track has (no|the same)"):
+        fit_course(rec, options=CourseOptions(elevation=ElevationOptions(source="device")))
+    # A route with altitude gives the climbs (auto: the route's, not a mix with flat).
+    hilly = _recording(tmp_path / "dem.gpx", x, y, np.linspace(100.0, 60.0, len(x)))
+    course = fit_course(rec, options=CourseOptions(trim=TrimOptions(route=hilly)))
+    elevation = course.build["elevation"]
+    assert elevation["source"] == "route" and not course.build["warnings"]
+    assert float(course.z_m[0] - course.z_m[-1]) == pytest.approx(40.0, abs=2.0)
+
+
+def test_a_course_tcx_reads_like_the_gpx_route(tmp_path: Path) -> None:
+    points = [(45.40 + 0.001 * i, 11.0 + 0.0005 * i, 100.0 + i) for i in range(6)]
+    ns = "http://www.garmin.com/xmlschemas/TrainingCenterDatabase/v2"
+    body = "".join(
+        f"<Trackpoint><Position><LatitudeDegrees>{lat}</LatitudeDegrees><LongitudeDegrees>"
+        f"{lon}</LongitudeDegrees></Position><AltitudeMeters>{ele}</AltitudeMeters>"
+        "</Trackpoint>" for lat, lon, ele in points)
+    tcx = tmp_path / "course.tcx"
+    tcx.write_text(f'<?xml version="1.0"?><TrainingCenterDatabase xmlns="{ns}"><Courses>'
+                   f"<Course><Name>ITT</Name><Track>{body}</Track></Course></Courses>"
+                   "</TrainingCenterDatabase>")
+    gpx = tmp_path / "route.gpx"
+    gpx.write_text('<?xml version="1.0"?><gpx version="1.1" creator="test"><rte>' + "".join(
+        f'<rtept lat="{lat}" lon="{lon}"><ele>{ele}</ele></rtept>' for lat, lon, ele in points)
+        + "</rte></gpx>")
+    a, b = read_recording(tcx), read_recording(gpx)
+    for field in ("lat_deg", "lon_deg", "ele_m"):
+        assert np.array_equal(getattr(a, field), getattr(b, field)), field
+    assert a.time_s is None
+
+
+def test_a_route_laid_on_a_closed_loop_ride(data_file: Callable[[str], Path]) -> None:
+    # The ride's own file as the route of its track without altitude: route points at
+    # the loop's end land on its start, which made the altitude fit's abscissae repeat
+    # (a raw ValueError from SciPy).
+    ride = read_recording(data_file("rides/edge810_vector_stjohns_2013.fit"))
+    no_altitude = dataclasses.replace(ride, ele_m=np.full(len(ride), math.nan))
+    course = fit_course(no_altitude, options=CourseOptions(trim=TrimOptions(route=ride)))
+    assert course.closed_loop and course.build["elevation"]["source"] == "route"
+    assert course.summary()["gain_m"] == pytest.approx(fit_course(ride).summary()["gain_m"],
+                                                       rel=0.05)
