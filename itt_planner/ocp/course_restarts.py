@@ -355,9 +355,11 @@ class CourseSolve:
                                 wprime_model=settings.wprime_model)
             if status is PlanStatus.CONVERGED and not check.verified:
                 status, raw = PlanStatus.INVALID, INVALID_RAW_STATUS
-                log.warning("plan on %s is not verified: %s mismatch %.1fx its tolerance at "
-                            "s = %.0f m", course.name, check.worst, check.worst_ratio,
-                            check.worst_s_m)
+                # Info: `course_refine` goes on from here, and a plan that stays invalid
+                # is warned about once, at the end (`course_problem`), and in `attempts`.
+                log.info("plan on %s failed its check: %s mismatch %.1fx its tolerance at "
+                         "s = %.0f m", course.name, check.worst, check.worst_ratio,
+                         check.worst_s_m)
         meta["verification"] = None if check is None else check.as_dict()
         self.check = check
         meta["success"] = status is PlanStatus.CONVERGED

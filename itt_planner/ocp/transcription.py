@@ -40,6 +40,7 @@ known sparsity patterns. IPOPT gets them through its `grad_f`, `jac_g` and `hess
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -154,8 +155,13 @@ _KERNELS: dict[tuple[str, int, bool], tuple[ca.Function, ...]] = {}
 
 def stage_kernels(model: SpatialModel, substeps: int, compile_c: bool = True
                   ) -> tuple[ca.Function, ...]:
-    """The six per-stage kernels (see module docstring), compiled and cached."""
-    key = (model.ode.name(), substeps, compile_c)
+    """The six per-stage kernels (see module docstring), compiled and cached.
+
+    Cached by the model's expressions, not its name: a model rebuilt under the same name
+    with other constants (an experiment's smoothing) gets its own kernels.
+    """
+    content = hashlib.sha256((model.ode.serialize() + model.path.serialize()).encode())
+    key = (content.hexdigest(), substeps, compile_c)
     if key not in _KERNELS:
         _KERNELS[key] = _build_kernels(model, substeps, compile_c)
     return _KERNELS[key]
