@@ -77,17 +77,27 @@ def replay_cli(
         False, "--live-timing",
         help="Judge solver overruns by the wall clock and publish solve times, as live "
              "(the output is then not byte-reproducible)."),
+    namespace: str = typer.Option("/itt", "--namespace",
+                                  help="ROS namespace of the log's pacing topics."),
+    remap: list[str] = typer.Option(
+        [], "--remap", help="Read a topic of the log as a pacing topic, as ros2 bag play "
+        "--remap: /fix:=/itt/gps/fix (repeatable)."),
     as_json: bool = JSON_OPTION,
 ) -> None:
     """Replay a ride log through the pacing engine; write advice to MCAP (and Rerun)."""
     from itt_planner.errors import IttError  # noqa: PLC0415
     from itt_planner.live.resolve_model import RESOLVE_MODELS  # noqa: PLC0415
     from itt_planner.session.config import SessionConfig  # noqa: PLC0415
-    from itt_planner.session.replay import ReplaySettings, parse_speed, replay_ride  # noqa: PLC0415
+    from itt_planner.session.replay import (  # noqa: PLC0415
+        ReplaySettings,
+        parse_remap,
+        parse_speed,
+        replay_ride,
+    )
 
     with errors_to_exit(as_json):
         try:
-            settings = ReplaySettings(speed=parse_speed(speed))
+            settings = ReplaySettings(speed=parse_speed(speed), remap=parse_remap(remap))
         except ValueError as err:
             raise IttError(str(err)) from None
         if resolve_model not in RESOLVE_MODELS:
@@ -96,7 +106,7 @@ def replay_cli(
         config = SessionConfig(course=course, rider=rider, model=model,
                                plan_cache=str(cache_dir), horizon_m=horizon_m,
                                replan_period_s=replan_period, deterministic=not live_timing,
-                               course_resolve_model=resolve_model)
+                               course_resolve_model=resolve_model, namespace=namespace)
         result = replay_ride(log, config, output=out, rrd=rrd, rerun_sinks=tuple(rerun),
                              settings=settings, progress=progress_enabled()).as_dict()
     emit(result, as_json, _human_replay)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import logging
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import IO, Any, NamedTuple
 
@@ -73,11 +73,15 @@ class RideLogReader:
     Args:
         path: the `.mcap` file.
         namespace: ROS namespace of the pacing topics in this log.
+        remap: a topic of the log read as a pacing topic (`{"/fix": "/itt/gps/fix"}`,
+            `ros2 bag play --remap`): logs recorded from other drivers' topics.
     """
 
-    def __init__(self, path: str | Path, *, namespace: str = DEFAULT_NAMESPACE) -> None:
+    def __init__(self, path: str | Path, *, namespace: str = DEFAULT_NAMESPACE,
+                 remap: Mapping[str, str] | None = None) -> None:
         self.path = Path(path)
         self.topics = registry.topics_by_name(namespace)
+        self.remap = dict(remap or {})
         self.errors: list[str] = []
         self.warnings: list[str] = []
         self.skipped: Counter[str] = Counter()
@@ -184,7 +188,7 @@ class RideLogReader:
             raise RideLogError(f"{self.path}: " + "; ".join(self.errors))
 
     def _decode(self, raw: RawRecord, bad_topics: set[str]) -> object | None:
-        topic = self.topics.get(raw.topic)
+        topic = self.topics.get(self.remap.get(raw.topic, raw.topic))
         if topic is None:
             self.skipped[raw.topic] += 1
             return None

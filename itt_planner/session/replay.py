@@ -37,9 +37,12 @@ class ReplaySettings:
     Attributes:
         speed: pace as `speed` x real time by the stamps (1.0 = real time); None = as
             fast as possible.
+        remap: (topic of the log, pacing topic it is read as) pairs, as `ros2 bag play
+            --remap`: a log recorded from other drivers' topics (`parse_remap`).
     """
 
     speed: float | None = None
+    remap: tuple[tuple[str, str], ...] = ()
 
     def __post_init__(self) -> None:
         if self.speed is not None and not (self.speed > 0 and math.isfinite(self.speed)):
@@ -51,6 +54,7 @@ class ReplayResult:
     """Counts and timing of one replay (the CLI's `--json` object)."""
 
     messages_in: int = 0
+    samples_in: int = 0
     advice_out: int = 0
     ride_duration_s: float = 0.0
     wall_time_s: float = 0.0
@@ -73,7 +77,8 @@ class ReplayResult:
         """Plain JSON-able values."""
         solve = sorted(self.solve_times_s)
         return {
-            "messages_in": self.messages_in, "advice_out": self.advice_out,
+            "messages_in": self.messages_in, "samples_in": self.samples_in,
+            "advice_out": self.advice_out,
             "ride_duration_s": self.ride_duration_s, "wall_time_s": self.wall_time_s,
             "realtime_factor": self.realtime_factor,
             "output": str(self.output) if self.output else None,
@@ -130,7 +135,7 @@ def replay(log_path: str | Path, session: RideSession, *,
     result = ReplayResult(output=writer.path if writer else None)
     replaced: Counter[str] = Counter()
     try:
-        reader = RideLogReader(log_path, namespace=namespace)
+        reader = RideLogReader(log_path, namespace=namespace, remap=dict(settings.remap))
     except BaseException:
         session.close()
         raise
@@ -143,6 +148,8 @@ def replay(log_path: str | Path, session: RideSession, *,
         except RideLogError as err:
             # Everything readable was replayed; finish the output and report the damage.
             result.errors.append(str(err))
+        if not result.samples_in:
+            result.errors.append(_no_inputs(log_path, reader, namespace))
         session.finish()
         if writer is not None:
             for name, record in reader.metadata.items():
@@ -178,9 +185,35 @@ def _feed(reader: RideLogReader, session: RideSession, pacer: _Pacer, bar: tqdm[
         first = stamp if first is None else first
         result.ride_duration_s = max(result.ride_duration_s, stamp - first)
         if registry.is_sample(value):
+            result.samples_in += 1
             session.on_sample(value, raw)
         else:
             session.write_raw(raw)
+
+
+def _no_inputs(log_path: str | Path, reader: RideLogReader, namespace: str) -> str:
+    """What to say when a log gave the engine nothing: what it wants, what the log has."""
+    wanted = ", ".join(f"{t.name(namespace)} ({t.msgtype})" for t in registry.INPUT_TOPICS)
+    found = ", ".join(f"{topic} ({n})" for topic, n in sorted(reader.skipped.items()))
+    return (f"{log_path}: no GPS, speed or power message: the engine reads {wanted}; "
+            f"the log's other topics: {found or 'none'}; read one of them as a pacing topic "
+            "with --remap LOG_TOPIC:=PACING_TOPIC, or give the log's --namespace")
+
+
+def parse_remap(items: list[str] | tuple[str, ...]) -> tuple[tuple[str, str], ...]:
+    """`["/fix:=/itt/gps/fix"]` -> `(("/fix", "/itt/gps/fix"),)`.
+
+    Raises:
+        ValueError: an item that is not `FROM:=TO` with two absolute topic names.
+    """
+    pairs = []
+    for item in items:
+        src, sep, dst = item.partition(":=")
+        if not (sep and src.startswith("/") and dst.startswith("/")):
+            raise ValueError(f"--remap {item!r}: expected LOG_TOPIC:=PACING_TOPIC, both "
+                             "absolute (/fix:=/itt/gps/fix)")
+        pairs.append((src, dst))
+    return tuple(pairs)
 
 
 def _report(result: ReplayResult, session: RideSession, reader: RideLogReader,

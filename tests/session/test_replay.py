@@ -249,3 +249,24 @@ def test_cli_replay_refuses_an_unknown_resolve_model(tmp_path: Path) -> None:
     assert result.exit_code == 1, result.output
     error = json.loads(result.stdout)
     assert "--course-resolve-model '2d'" in error["error"] and "1d-line" in error["error"]
+
+
+def test_a_log_of_other_topics_is_an_error_and_remap_reads_it(setup: dict[str, Any],
+                                                              tmp_path: Path) -> None:
+    """A log recorded from another driver's topics gave 0 advice and exit 0; now an error
+    naming what the engine reads and what the log has, and `--remap` reads it as
+    `ros2 bag play --remap` would."""
+    names = {"/itt/gps/fix": "/fix", "/itt/speed": "/bike/speed", "/itt/power": "/bike/power"}
+    short = tmp_path / "short.mcap"
+    with RideLogWriter(short) as w:
+        for k, raw in enumerate(RideLogReader(setup["log"]).records()):
+            if k < setup["n_in"] // 5:
+                w.write_raw(raw._replace(topic=names[raw.topic]))
+    result = replay(short, session_for(setup))
+    assert result.advice_out == 0 and len(result.errors) == 1
+    assert all(t in result.errors[0] for t in (*names, *names.values(), "--remap"))
+    remap = replay_mod.parse_remap([f"{b}:={a}" for a, b in names.items()])
+    result = replay(short, session_for(setup), settings=ReplaySettings(remap=remap))
+    assert result.errors == [] and result.advice_out >= 2
+    with pytest.raises(ValueError, match="LOG_TOPIC:=PACING_TOPIC"):
+        replay_mod.parse_remap(["fix:=/itt/gps/fix"])
