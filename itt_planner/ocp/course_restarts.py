@@ -26,13 +26,14 @@ start may use `_FIRST_SHARE` of it):
   cold start on the full mesh forms a node or two per iteration (2026-12-01, H5). If
   the coarse run does not converge, the cold start on the full mesh as before;
 - windows first (3D, cold as above, a course longer than `OcpSettings.window_min_m`):
-  the 1D plan, then the 3D model on overlapping windows of ~12 km of work (shorter
-  among corners) from it (barrier capped, `OcpSettings.window_mu_max`), each cold on
-  its own nodes of the full mesh (no coarse mesh first: on Ardennes that failed in 2 of
-  4 windows of 15 km, and a window's own run costs less than a coarse and a fine one,
-  bench/RESULTS.md, 2026-12-02, H3), then a run on the full mesh resumed from their
-  stitched primal-dual point (`course_windows`, why there). A window that gives up
-  early, or still runs at 1.5 times the iterations of the slowest window before it
+  the 1D plan (its barrier never monotone, `OcpSettings.never_monotone`), then the 3D
+  model on overlapping windows of ~12 km of work (shorter among corners) from it
+  (barrier capped, `OcpSettings.window_mu_max`), each cold on its own nodes of the full
+  mesh (no coarse mesh first: on Ardennes that failed in 2 of 4 windows of 15 km, and a
+  window's own run costs less than a coarse and a fine one, bench/RESULTS.md,
+  2026-12-02, H3), then a run on the full mesh resumed from their stitched primal-dual
+  point (`course_windows`, why there). A window that gives up early, or still runs at
+  1.5 times the iterations of the slowest window before it
   (`OcpSettings.window_max_iter`), is restarted with the smaller bound push below; one
   that still fails, from the other guess (the arc guess or the 1D plan). If the 1D plan
   or a window does not converge, the coarse mesh first or the cold start as without;
@@ -198,13 +199,13 @@ class CourseSolve:
         if res is None or res.status is PlanStatus.FAILED:
             # The first start gets `_FIRST_SHARE` of the budget, so that a restart has some left.
             res = run("guess" if self.guess is not None else "cold", prob, cold,
-                      share=_FIRST_SHARE)
+                      share=_FIRST_SHARE, never_monotone=self.settings.never_monotone)
         if res.gave_up_early and usable():
             res = run("smaller bound push", prob, cold, bound_push=_RETRY_BOUND_PUSH, share=0.5)
         if res.status is PlanStatus.CAPPED and self.model == "3d" and usable():
             # Capped 3D runs were mostly still converging: go on from where it stopped.
             res = run("resume", prob, res.w, share=_RESUME_SHARE, resume=res)
-        if not res.converged and self.one_d and usable():
+        if not res.converged and self.one_d and not self.settings.never_monotone and usable():
             res = run("never-monotone barrier", prob, cold, share=0.5, never_monotone=True)
         if not res.converged and self.one_d and usable():
             prob = self.nlp(self.mesh(cap, 0.5), self.guess)
@@ -232,7 +233,7 @@ class CourseSolve:
         """Solve the 1D plan, then the 3D model on overlapping windows from it
         (`course_windows`), then resume on `prob` from their stitched point; None when
         the 1D plan or a window did not converge (the caller then goes on as without)."""
-        base = self._plan_1d("1d plan for the windows", 0.25)
+        base = self._plan_1d("1d plan for the windows", 0.25, never_monotone=True)
         if not base.meta.get("success"):
             return None
         st, run, usable = self.settings, self.budget.run, self.budget.usable
@@ -310,13 +311,15 @@ class CourseSolve:
                           dataclasses.replace(self.settings, e_final_min=reserve), "3d", nodes,
                           self.v0 if start is None else start.state["v"], start, guess)
 
-    def _plan_1d(self, strategy: str, share: float) -> Plan:
-        """The 1D plan of the same solve (`share` of the CPU left at most), an attempt."""
+    def _plan_1d(self, strategy: str, share: float, never_monotone: bool = False) -> Plan:
+        """The 1D plan of the same solve (`share` of the CPU left at most), an attempt;
+        `never_monotone`: its first run's (`OcpSettings.never_monotone`)."""
         _, secs = self.budget.left()
         st, left_m = self.settings, self.course.length_m - self.start_m
         cpu0 = time.process_time()
         base = self.solve_1d(dataclasses.replace(
-            st, max_iter=None, max_cpu_time_s=min(secs * share, st.budget("1d", left_m)[1])))
+            st, max_iter=None, max_cpu_time_s=min(secs * share, st.budget("1d", left_m)[1]),
+            never_monotone=never_monotone))
         self.budget.attempts.append({
             "strategy": strategy, "status": base.solver_status,
             "outcome": PlanStatus.of(base.solver_status).value, "iterations": base.iterations,

@@ -92,6 +92,15 @@ class OcpSettings:
             iterations of ~1 s CPU each, still running (Ardennes, from the windows of
             two other settings, after reaching 7e-6 and 5.5e-6 of error; at 1e-5: 17
             iterations; bench/RESULTS.md, 2026-12-03, helper P4).
+        never_monotone: the first run's adaptive barrier without its fall-back to the
+            monotone mode (`solver.full_course_solver`); set for the 1D plan the windows
+            start from, whose only use is a guess. The Ardennes ride's (calibrated rider)
+            otherwise let the barrier fall to 1e-11 by iteration 10 and wandered: 254
+            iterations instead of 323, the windows after it 1,140 in all instead of
+            1,237 (the finish +0.003 %); Shanghai's and Sauerland's ran the same iterates
+            either way (bench/RESULTS.md, 2026-12-03, sixth session). Not for every
+            plan: over the convergence study's courses it was worse on some (Bologna 81
+            -> 257 iterations, 2026-12-02), so elsewhere it is a restart only.
     """
 
     h_min_m: float = 1.0
@@ -122,6 +131,7 @@ class OcpSettings:
     window_iter_factor: float = 1.5
     window_mu_max: float = 0.1
     window_polish_tol: float = 1e-5
+    never_monotone: bool = False
 
     def budget(self, model: str, length_m: float) -> tuple[int, float]:
         """(iterations, seconds) for one solve of `length_m` metres with `model`.

@@ -147,7 +147,8 @@ def test_a_window_at_its_iteration_cap_starts_again_with_the_smaller_bound_push(
 def test_windows_from_the_1d_plan_cap_the_barrier_and_the_polish_has_its_tolerance(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """`OcpSettings.window_mu_max` on every run of a window from the 1D plan (not from
-    the arc guess, not the polish), `window_polish_tol` on the polish alone."""
+    the arc guess, not the polish), `window_polish_tol` on the polish alone; the 1D plan
+    the windows start from with the never-monotone barrier, no 3D run."""
     calls: list[tuple[str, dict[str, Any]]] = []
     real = full_course_solver
 
@@ -169,6 +170,7 @@ def test_windows_from_the_1d_plan_cap_the_barrier_and_the_polish_has_its_toleran
         assert all(kw["mu_max"] == mu_max and kw["tol"] == settings.tol for kw in windows)
         assert polish["resume"] and polish["mu_max"] is None and polish["tol"] == 3e-6
         assert all(kw["mu_max"] is None for name, kw in calls if name == "1d")
+        assert all(kw["never_monotone"] == (name == "1d") for name, kw in calls)
 
 
 def test_a_window_may_run_half_again_the_iterations_of_the_slowest_one_before_it() -> None:
