@@ -107,8 +107,7 @@ class Layout:
 
     def x_index(self, k: int | np.ndarray, i: int | np.ndarray) -> np.ndarray:
         """Position of state i of node k in the decision vector."""
-        index: np.ndarray = np.asarray(k) * self.stage + np.asarray(i)
-        return index
+        return np.asarray(np.asarray(k) * self.stage + np.asarray(i))
 
     def split(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Numeric decision vector -> X (nx x N+1), U (nu x N), S (ns x N)."""
@@ -150,18 +149,15 @@ class Transcription:
         return np.concatenate(parts)
 
 
+#: Keyed by the model's expressions, not its name (a model rebuilt with other constants).
 _KERNELS: dict[tuple[str, int, bool], tuple[ca.Function, ...]] = {}
 
 
 def stage_kernels(model: SpatialModel, substeps: int, compile_c: bool = True
                   ) -> tuple[ca.Function, ...]:
-    """The six per-stage kernels (see module docstring), compiled and cached.
-
-    Cached by the model's expressions, not its name: a model rebuilt under the same name
-    with other constants (an experiment's smoothing) gets its own kernels.
-    """
-    content = hashlib.sha256((model.ode.serialize() + model.path.serialize()).encode())
-    key = (content.hexdigest(), substeps, compile_c)
+    """The six per-stage kernels (see module docstring), compiled and cached."""
+    content = (model.ode.serialize() + model.path.serialize()).encode()
+    key = (hashlib.sha256(content).hexdigest(), substeps, compile_c)
     if key not in _KERNELS:
         _KERNELS[key] = _build_kernels(model, substeps, compile_c)
     return _KERNELS[key]
@@ -344,8 +340,7 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     p = ca.MX.sym("p", len(ROAD) * n + len(PARAMS) + (len(TERMINAL) if soft else 0))
     body = ca.reshape(w[: st * n], st, n)
     x_last = w[st * n: st * n + nx]
-    xs = ca.horzcat(body[:nx, :], x_last)
-    us = body[nx:nz, :]
+    xs, us = ca.horzcat(body[:nx, :], x_last), body[nx:nz, :]
     road = ca.reshape(p[: len(ROAD) * n], len(ROAD), n)
     par = p[len(ROAD) * n: len(ROAD) * n + len(PARAMS)]
     term = p[len(ROAD) * n + len(PARAMS):] if soft else ca.MX.zeros(len(TERMINAL))
@@ -363,8 +358,7 @@ def transcribe(model: SpatialModel, n_intervals: int, *, substeps: int = 1,
     g_gap = ca.vec(x_next - xs[:, 1:])
     g_acc, v_to, v_from, ds_k = _acceleration_bound(xs[iv, :], road, par, n)
     if soft:
-        slacks = body[nz:, :]
-        e_slack = w[-1]
+        slacks, e_slack = body[nz:, :], w[-1]
         # The final node has no stage of its own: it shares the last stage's slacks.
         path = path - ca.horzcat(slacks, slacks[:, n - 1])
         f = f + slack_weight * (ca.sum1(ca.sum2(slacks)) + ca.sumsqr(slacks))
