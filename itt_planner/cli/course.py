@@ -24,10 +24,12 @@ _TOLERANCE = typer.Option(5.0, "--elevation-tolerance", help="Warn when route an
                           "altitude disagree by more than this (m).")
 _WIDTH = typer.Option(None, "--road-width", help="Full road width of a GPS course (m); "
                       "default 6.0 (closed-road time trial). Per stretch: a GPS-course YAML.")
+_LAPS = typer.Option(1, "--laps", help="Laps of a closed-loop track the race rides (a "
+                     "circuit time trial; `laps:` in a GPS-course YAML for plan and replay).")
 
 
 def _options(start: str | None, finish: str | None, route: Path | None, elevation: str,
-             tolerance: float, width: float | None) -> Any:
+             tolerance: float, width: float | None, laps: int = 1) -> Any:
     """`CourseOptions` from the CLI flags, or None when all are at their defaults."""
     from itt_planner.course.elevation import ElevationOptions  # noqa: PLC0415
     from itt_planner.course.fit import CourseOptions  # noqa: PLC0415
@@ -35,14 +37,14 @@ def _options(start: str | None, finish: str | None, route: Path | None, elevatio
     from itt_planner.course.track_files import read_recording  # noqa: PLC0415
     from itt_planner.course.trim import TrimOptions, parse_mark  # noqa: PLC0415
 
-    if (start, finish, route, elevation, tolerance, width) == (None, None, None, "auto", 5.0,
-                                                               None):
+    if (start, finish, route, elevation, tolerance, width, laps) == (
+            None, None, None, "auto", 5.0, None, 1):
         return None
     return CourseOptions(
         trim=TrimOptions(start=parse_mark(start), finish=parse_mark(finish),
                          route=read_recording(route) if route else None),
         elevation=ElevationOptions(source=elevation, tolerance_m=tolerance),
-        road_width_m=GPS_ROAD_WIDTH_M if width is None else width)
+        road_width_m=GPS_ROAD_WIDTH_M if width is None else width, laps=laps)
 
 
 def _human_info(info: dict[str, Any]) -> str:
@@ -51,6 +53,8 @@ def _human_info(info: dict[str, Any]) -> str:
         f"-{info['loss_m']:.0f} m, grades {info['min_grade'] * 100:.1f} % to "
         f"{info['max_grade'] * 100:.1f} %, "
         f"{'closed loop' if info['closed_loop'] else 'point to point'}"
+        + (f", {laps['laps']} laps of {laps['lap_m'] / 1000:.2f} km"
+           if (laps := (info.get("build") or {}).get("laps")) else "")
         + (" (SYNTHETIC)" if info["synthetic"] else ""),
         (f"{info['n_corners']} corners, tightest radius {info['min_radius_m']} m; road width "
          f"{info['road_width_m'][0]:g}-{info['road_width_m'][1]:g} m"),
@@ -81,13 +85,13 @@ def info_cli(
                                  "YAML, or demo name."),
     start: str | None = _START, finish: str | None = _FINISH, route: Path | None = _ROUTE,
     elevation: str = _ELEVATION, tolerance: float = _TOLERANCE, width: float | None = _WIDTH,
-    as_json: bool = JSON_OPTION,
+    laps: int = _LAPS, as_json: bool = JSON_OPTION,
 ) -> None:
     """Print length, climbing, grades, trimming, altitude checks, width and the corners."""
     from itt_planner.course.loader import load_course  # noqa: PLC0415
 
     with errors_to_exit(as_json):
-        options = _options(start, finish, route, elevation, tolerance, width)
+        options = _options(start, finish, route, elevation, tolerance, width, laps)
         emit(load_course(course, options).summary(), as_json, _human_info)
 
 
@@ -97,13 +101,13 @@ def save_cli(
     output: Path = typer.Option(..., "--output", "-o", help="Where to write the .course.npz."),
     start: str | None = _START, finish: str | None = _FINISH, route: Path | None = _ROUTE,
     elevation: str = _ELEVATION, tolerance: float = _TOLERANCE, width: float | None = _WIDTH,
-    as_json: bool = JSON_OPTION,
+    laps: int = _LAPS, as_json: bool = JSON_OPTION,
 ) -> None:
     """Build a course and save it in the project's own format (with how it was built)."""
     from itt_planner.course.loader import load_course  # noqa: PLC0415
 
     with errors_to_exit(as_json):
-        options = _options(start, finish, route, elevation, tolerance, width)
+        options = _options(start, finish, route, elevation, tolerance, width, laps)
         built = load_course(course, options)
         path = built.save(output)
         emit({"output": str(path), "length_m": round(built.length_m, 1),

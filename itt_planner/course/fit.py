@@ -103,12 +103,13 @@ class WidthStretch:
 @dataclass(frozen=True)
 class CourseOptions:
     """What a GPS course is made of, beyond the track: the race's extent, the altitude
-    source, the road width (`road_width_m`, overridden per stretch by `widths`)."""
+    source, the road width (`road_width_m`, overridden per stretch by `widths`), the laps."""
 
     trim: TrimOptions = TrimOptions()
     elevation: ElevationOptions = ElevationOptions()
     road_width_m: float = GPS_ROAD_WIDTH_M
     widths: tuple[WidthStretch, ...] = ()
+    laps: int = 1
 
 
 def fit_course_file(path: str | Path, settings: FitSettings = FitSettings(),
@@ -160,7 +161,7 @@ def fit_course(rec: Recording, settings: FitSettings = FitSettings(),
         closed_loop=track.closed_loop, ds_m=settings.ds_m, theta_rad=theta, kappa_per_m=kappa,
         width_left_m=width / 2, width_right_m=width / 2,
         source=str(rec.path), source_sha256=rec.sha256, build=build,
-    )
+    ).laps(options.laps)
 
 
 def _road_width(s: np.ndarray, options: CourseOptions) -> tuple[np.ndarray, dict[str, Any]]:
@@ -204,10 +205,10 @@ def _fit_plan(track: Track, st: FitSettings  # noqa: PLR0915  (one pipeline; pas
     u_pts = u[:n_pts]
     off = 0
     if track.closed_loop:
-        # Wrap enough data around the seam that the fit there sees the road on both sides.
-        pad_m = min(4.0 * st.straight_scale_m + 50.0, 0.45 * period)
-        head = u_pts < pad_m
-        tail = u_pts > period - pad_m
+        # Wrap enough data around the seam that the fit there sees the road on both sides
+        # (5 fixes at least: a route's straight has its two ends only; 9 m off with none).
+        pad_m, i = min(4.0 * st.straight_scale_m + 50.0, 0.45 * period), np.arange(n_pts)
+        head, tail = (u_pts < pad_m) | (i < 5), (u_pts > period - pad_m) | (i >= n_pts - 5)
         off = int(tail.sum())
         u_fit = np.concatenate([u_pts[tail] - period, u_pts, u_pts[head] + period])
         xy_fit = np.vstack([xy[tail], xy, xy[head]])
@@ -365,8 +366,7 @@ def _fit_altitude(s_pts: np.ndarray, z_pts: np.ndarray, length_m: float, closed:
                   st: FitSettings) -> BSpline:
     """Smoothing spline z(s) with a long smoothing length (altitude jitters by metres).
 
-    Closed loops are wrapped like the plan view so the profile joins at the seam (a
-    point at the loop's length is its start: a route's last point often lands there).
+    Closed loops are wrapped like the plan view, positions modulo the loop (its end is its start).
     """
     if closed:
         s_pts = np.mod(s_pts, length_m)

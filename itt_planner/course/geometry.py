@@ -208,6 +208,37 @@ class Course:
             ],
         }
 
+    def laps(self, n: int) -> Course:
+        """This closed loop ridden `n` times, as one course (a circuit time trial: the
+        route planner's file is one lap); widths and corners repeat, the build records
+        `laps`. One lap is the course itself.
+
+        Raises:
+            CourseError: `n` below 1, or more than one lap of a course that is no loop.
+        """
+        if n == 1:
+            return self
+        if n < 1 or not self.closed_loop:
+            why = "at least 1" if n < 1 else "a closed loop, and this course is point to point"
+            raise CourseError(f"course {self.name!r}: {n} laps need {why}")
+        seam = float(np.hypot(self.x_m[0] - self.x_m[-1], self.y_m[0] - self.y_m[-1]))
+        lap_m = self.length_m + seam
+        # A grid that ends on its start point would repeat that point at each lap's start.
+        body = slice(0, -1) if seam < 1e-6 else slice(None)
+        turn = 2 * math.pi * round(float(self.theta_rad[-1] - self.theta_rad[0]) / (2 * math.pi))
+
+        def tiled(a: np.ndarray, step: float = 0.0) -> np.ndarray:
+            return np.concatenate([a[body] + k * step for k in range(n - 1)]
+                                  + [a + (n - 1) * step])
+
+        return Course.from_centerline(
+            self.name, tiled(self.x_m), tiled(self.y_m), tiled(self.z_m), origin=self.origin,
+            closed_loop=True, ds_m=self.ds_m, theta_rad=tiled(self.theta_rad, turn),
+            kappa_per_m=tiled(self.kappa_per_m), width_left_m=tiled(self.width_left_m),
+            width_right_m=tiled(self.width_right_m), source=self.source,
+            source_sha256=self.source_sha256, synthetic=self.synthetic,
+            build={**self.build, "laps": {"laps": n, "lap_m": round(lap_m, 1)}})
+
     # ---- persistence ------------------------------------------------------------------
     def save(self, path: str | Path) -> Path:
         """Write the course as `.course.npz` (arrays + JSON header)."""

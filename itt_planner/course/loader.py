@@ -15,8 +15,9 @@ A GPS-course YAML carries what a track alone cannot say, so `plan`, `replay` and
     elevation: auto             # auto | device | smoothed | route | mix
     elevation_tolerance_m: 5
     road_width_m: 6.0           # full width; default GPS_ROAD_WIDTH_M (closed road)
-    widths:                     # per stretch, metres along the course
+    widths:                     # per stretch, metres along the course (along a lap)
       - {from_m: 3200, to_m: 4100, width_m: 4.0}
+    laps: 2                     # a circuit ridden twice (the track a closed loop)
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from itt_planner.errors import CourseError
 
 DEMO_COURSES = ("verona-like", "rovereto-like")
 _GPS_KEYS = {"track", "route", "start", "finish", "elevation", "elevation_tolerance_m",
-             "road_width_m", "widths", "name", "description"}
+             "road_width_m", "widths", "laps", "name", "description"}
 
 
 def demo_path(name: str) -> Path:
@@ -125,7 +126,8 @@ def gps_course_options(spec: dict[str, Any], base: Path) -> tuple[Path, CourseOp
             elevation=ElevationOptions(source=str(spec.get("elevation", "auto")),
                                        tolerance_m=float(spec.get("elevation_tolerance_m",
                                                                   5.0))),
-            road_width_m=float(spec.get("road_width_m", GPS_ROAD_WIDTH_M)), widths=stretches)
+            road_width_m=float(spec.get("road_width_m", GPS_ROAD_WIDTH_M)), widths=stretches,
+            laps=int(spec.get("laps", 1)))
     except (KeyError, TypeError, ValueError) as err:
         raise CourseError(f"invalid GPS-course field ({type(err).__name__}: {err})") from None
     return base / str(spec["track"]), options

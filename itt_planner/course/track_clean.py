@@ -44,8 +44,10 @@ class CleanSettings:
             (displacement over +-2 fixes; standing GPS wander stays well below it).
         max_speed_mps: implied speeds above this mark a GPS jump (no bike does 30 m/s on
             a course that matters here; Zwift descents top out below it).
-        spike_window: a jump that comes back within this many fixes is a spike and is
-            removed; one that does not is a real gap and is kept.
+        spike_window, unstamped_spike_window: a jump that comes back within this many
+            fixes (without stamps: the second; a route's sparse points can close a whole
+            lap within the first) is a spike and is removed; one that does not is a real
+            gap and is kept.
         closed_loop_gap_m: a track that ends this close to its start is a closed loop...
         closed_loop_min_length_m: ... if it is at least this long.
     """
@@ -55,6 +57,7 @@ class CleanSettings:
     moving_gps_speed_mps: float = 1.5
     max_speed_mps: float = 30.0
     spike_window: int = 30
+    unstamped_spike_window: int = 3
     closed_loop_gap_m: float = 30.0
     closed_loop_min_length_m: float = 1000.0
 
@@ -283,10 +286,12 @@ def _drop_spikes(x: np.ndarray, y: np.ndarray, t: np.ndarray | None,
     `spike_window` fixes is plausibly reachable from the fix before the jump, everything
     in between is a spike; otherwise the jump is a real gap (pause, tunnel) and is kept.
     Without stamps that fix must also have come back (half as far from the fix before
-    the jump as the jump went): a route drawn on a map has points every few metres in
-    bends and one after a 500 m straight, and the straight's far end is no spike.
+    the jump as the jump went), within `unstamped_spike_window` fixes: a route drawn on a
+    map has points every few metres in bends and one after a 500 m straight, and the
+    straight's far end is no spike, nor the rest of a lap that comes back to its start.
     """
     n = len(x)
+    window = settings.spike_window if t is not None else settings.unstamped_spike_window
     keep = np.ones(n, dtype=bool)
     step = np.hypot(np.diff(x), np.diff(y))
     typical = float(np.median(step)) if len(step) else 0.0
@@ -305,7 +310,7 @@ def _drop_spikes(x: np.ndarray, y: np.ndarray, t: np.ndarray | None,
             i += 1
             continue
         went = float(np.hypot(x[i] - x[last], y[i] - y[last]))
-        back = next((j for j in range(i + 1, min(i + 1 + settings.spike_window, n))
+        back = next((j for j in range(i + 1, min(i + 1 + window, n))
                      if plausible(last, j) and (
                          t is not None or np.hypot(x[j] - x[last], y[j] - y[last]) < went / 2)),
                     None)

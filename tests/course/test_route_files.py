@@ -14,10 +14,13 @@ import pytest
 
 from itt_planner.course.elevation import ElevationOptions
 from itt_planner.course.fit import CourseOptions, fit_course
+from itt_planner.course.loader import load_course
 from itt_planner.course.track_clean import clean_fixes
 from itt_planner.course.track_files import Recording, read_recording
 from itt_planner.course.trim import TrimOptions
 from itt_planner.errors import CourseError
+from itt_planner.model.rider import PRESETS
+from itt_planner.ocp.course_problem import solve_plan
 
 LAT0, LON0 = 45.4, 11.0
 RADIUS_M = 20.0
@@ -107,3 +110,53 @@ def test_a_route_laid_on_a_closed_loop_ride(data_file: Callable[[str], Path]) ->
     assert course.closed_loop and course.build["elevation"]["source"] == "route"
     assert course.summary()["gain_m"] == pytest.approx(fit_course(ride).summary()["gain_m"],
                                                        rel=0.05)
+
+
+def _circuit_xy() -> tuple[np.ndarray, np.ndarray]:
+    """A 1.6 km circuit as a planner draws it: a 300 m x 400 m rectangle whose four
+    corners are 30 m arcs (a point every 5 m), each straight its two ends only."""
+    xs: list[float] = []
+    ys: list[float] = []
+    for cx, cy, a0 in ((270.0, 30.0, -90.0), (270.0, 370.0, 0.0), (30.0, 370.0, 90.0),
+                       (30.0, 30.0, 180.0)):
+        a = np.radians(np.linspace(a0, a0 + 90.0, 10))
+        xs.extend(cx + 30.0 * np.cos(a))
+        ys.extend(cy + 30.0 * np.sin(a))
+    return np.array([*xs, xs[0]]), np.array([*ys, ys[0]])  # back on its first point
+
+
+def test_a_circuit_ridden_for_laps(tmp_path: Path) -> None:
+    x, y = _circuit_xy()
+    rec = _recording(tmp_path / "circuit.gpx", x, y, 100.0 + 0.01 * (x - 150.0))
+    lap = fit_course(rec)
+    assert lap.closed_loop and len(lap.corners) == 4
+    race = fit_course(rec, options=CourseOptions(laps=3))
+    assert race.closed_loop and race.build["laps"]["laps"] == 3
+    # Each lap is the loop with its seam (the grid's last point to its first), the race
+    # ends where one lap does.
+    lap_m = race.build["laps"]["lap_m"]
+    seam = math.hypot(lap.x_m[0] - lap.x_m[-1], lap.y_m[0] - lap.y_m[-1])
+    assert seam < 2.0  # the fit wraps 5 fixes at least around the seam (9 m off with none)
+    assert lap_m == pytest.approx(lap.length_m + seam, abs=0.1)
+    assert race.length_m == pytest.approx(3 * lap_m - seam, abs=2.0)
+    assert len(race.corners) == 12
+    assert float(np.max(np.abs(np.diff(race.theta_rad)))) < 0.1  # no jump at the seams
+    at_lap = race.enu_at(lap_m)
+    assert math.hypot(at_lap[0] - race.x_m[0], at_lap[1] - race.y_m[0]) < 1.0
+    # A GPS-course YAML says `laps:` for plan and replay; a point-to-point track has none.
+    rec.path.write_text('<?xml version="1.0"?><gpx version="1.1" creator="t"><rte>' + "".join(
+        f'<rtept lat="{la}" lon="{lo}"><ele>{z}</ele></rtept>'
+        for la, lo, z in zip(rec.lat_deg, rec.lon_deg, rec.ele_m, strict=True)) + "</rte></gpx>")
+    (tmp_path / "race.yaml").write_text("track: circuit.gpx\nlaps: 2\n")
+    assert load_course(tmp_path / "race.yaml").length_m == pytest.approx(2 * lap_m - seam,
+                                                                         abs=2.0)
+    x2, y2, _ = _route_xy()
+    with pytest.raises(CourseError, match="2 laps need a closed loop"):
+        fit_course(_recording(tmp_path / "route.gpx", x2, y2, np.zeros(len(x2))),
+                   options=CourseOptions(laps=2))
+    # The 1D plan of two laps: the flying second lap is faster than the standing first.
+    plan = solve_plan(fit_course(rec, options=CourseOptions(laps=2)), PRESETS["typical"],
+                      model="1d")
+    assert plan.meta["success"], plan.meta["attempts"]
+    t_lap = float(np.interp(lap_m, plan.s_m, plan.t_s))
+    assert plan.finish_time_s - t_lap < t_lap
