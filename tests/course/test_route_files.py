@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pymap3d
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from itt_planner.course.elevation import ElevationOptions
 from itt_planner.course.fit import CourseOptions, fit_course
@@ -160,3 +162,38 @@ def test_a_circuit_ridden_for_laps(tmp_path: Path) -> None:
     assert plan.meta["success"], plan.meta["attempts"]
     t_lap = float(np.interp(lap_m, plan.s_m, plan.t_s))
     assert plan.finish_time_s - t_lap < t_lap
+
+
+@st.composite
+def drawn_routes(draw: st.DrawFn) -> tuple[np.ndarray, np.ndarray, float]:
+    """A route as a planner draws it: straights (their two ends only) and bends (a point
+    every 5 m on an arc), with its true length."""
+    x, y, heading, length = [0.0], [0.0], 0.0, 0.0
+    for _ in range(draw(st.integers(3, 8))):
+        run = draw(st.floats(100.0, 800.0))
+        x.append(x[-1] + run * math.cos(heading))
+        y.append(y[-1] + run * math.sin(heading))
+        radius = draw(st.floats(10.0, 200.0))
+        turn = math.radians(draw(st.floats(30.0, 150.0)) * draw(st.sampled_from((-1, 1))))
+        steps = max(1, round(abs(turn) * radius / 5.0))  # >= 5.2 m of arc: no duplicates
+        cx = x[-1] - radius * math.sin(heading) * math.copysign(1.0, turn)
+        cy = y[-1] + radius * math.cos(heading) * math.copysign(1.0, turn)
+        for k in range(1, steps + 1):
+            h = heading + turn * k / steps
+            x.append(cx + radius * math.sin(h) * math.copysign(1.0, turn))
+            y.append(cy - radius * math.cos(h) * math.copysign(1.0, turn))
+        heading += turn
+        length += run + abs(turn) * radius
+    return np.array(x), np.array(y), length
+
+
+@given(route=drawn_routes())
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+def test_any_drawn_route_keeps_its_points_and_length(route: tuple[np.ndarray, np.ndarray,
+                                                                  float]) -> None:
+    x, y, length = route
+    rec = _recording(Path("drawn.gpx"), x, y, np.zeros(len(x)))
+    assert len(clean_fixes(rec)) == len(x)  # no route point taken for a GPS spike
+    course = fit_course(rec)
+    assert course.length_m == pytest.approx(length, rel=0.03)
+    assert course.build["trim"]["finish_m"] == pytest.approx(course.length_m, rel=0.03)
