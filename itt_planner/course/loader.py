@@ -117,6 +117,9 @@ def gps_course_options(spec: dict[str, Any], base: Path) -> tuple[Path, CourseOp
     widths = spec.get("widths") or []
     if not isinstance(widths, list):
         raise CourseError("'widths' must be a list of {from_m, to_m, width_m}")
+    laps = spec.get("laps", 1)
+    if isinstance(laps, bool) or not isinstance(laps, int):
+        raise CourseError(f"'laps' must be a whole number of laps, got {laps!r}")
     try:
         stretches = tuple(WidthStretch(float(w["from_m"]), float(w["to_m"]),
                                        float(w["width_m"])) for w in widths)
@@ -127,7 +130,7 @@ def gps_course_options(spec: dict[str, Any], base: Path) -> tuple[Path, CourseOp
                                        tolerance_m=float(spec.get("elevation_tolerance_m",
                                                                   5.0))),
             road_width_m=float(spec.get("road_width_m", GPS_ROAD_WIDTH_M)), widths=stretches,
-            laps=int(spec.get("laps", 1)))
+            laps=laps)
     except (KeyError, TypeError, ValueError) as err:
         raise CourseError(f"invalid GPS-course field ({type(err).__name__}: {err})") from None
     return base / str(spec["track"]), options

@@ -152,6 +152,9 @@ def test_a_circuit_ridden_for_laps(tmp_path: Path) -> None:
     (tmp_path / "race.yaml").write_text("track: circuit.gpx\nlaps: 2\n")
     assert load_course(tmp_path / "race.yaml").length_m == pytest.approx(2 * lap_m - seam,
                                                                          abs=2.0)
+    (tmp_path / "half.yaml").write_text("track: circuit.gpx\nlaps: 1.5\n")
+    with pytest.raises(CourseError, match=r"half\.yaml: 'laps' must be a whole number"):
+        load_course(tmp_path / "half.yaml")
     x2, y2, _ = _route_xy()
     with pytest.raises(CourseError, match="2 laps need a closed loop"):
         fit_course(_recording(tmp_path / "route.gpx", x2, y2, np.zeros(len(x2))),
