@@ -128,7 +128,8 @@ def replay(log_path: str | Path, session: RideSession, *,
         The counts; damage of the input is in `errors`, never raised.
 
     Raises:
-        RideLogError: the input cannot be opened at all, or the output cannot be written.
+        RideLogError: the input cannot be opened at all, the output cannot be written, or
+            a remap names a topic the engine does not read.
     """
     namespace = session.config.namespace
     writer = session.sinks.writer
@@ -136,6 +137,10 @@ def replay(log_path: str | Path, session: RideSession, *,
     replaced: Counter[str] = Counter()
     try:
         reader = RideLogReader(log_path, namespace=namespace, remap=dict(settings.remap))
+        inputs = [t.name(namespace) for t in registry.INPUT_TOPICS]
+        if unknown := [dst for _, dst in settings.remap if dst not in inputs]:
+            raise RideLogError(f"--remap to {', '.join(unknown)}: not a topic the engine "
+                               f"reads ({', '.join(inputs)})")
     except BaseException:
         session.close()
         raise

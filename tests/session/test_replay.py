@@ -13,6 +13,7 @@ from support.mcap_readers import check_all_readers, rerun_value
 from typer.testing import CliRunner
 
 from itt_planner.cli import app
+from itt_planner.errors import RideLogError
 from itt_planner.live.advice import Advice
 from itt_planner.live.engine import ON_PLAN, EngineSettings, PacingEngine
 from itt_planner.logs.ridelog import RawRecord, RideLogReader
@@ -270,3 +271,5 @@ def test_a_log_of_other_topics_is_an_error_and_remap_reads_it(setup: dict[str, A
     assert result.errors == [] and result.advice_out >= 2
     with pytest.raises(ValueError, match="LOG_TOPIC:=PACING_TOPIC"):
         replay_mod.parse_remap(["fix:=/itt/gps/fix"])
+    with pytest.raises(RideLogError, match="--remap to /itt/gps: not a topic the engine reads"):
+        replay(short, session_for(setup), settings=ReplaySettings(remap=(("/fix", "/itt/gps"),)))
