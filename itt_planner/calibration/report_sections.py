@@ -23,7 +23,7 @@ from itt_planner.calibration.plan_check import plan_check
 from itt_planner.calibration.rider_file import CalibratedRiderFile
 from itt_planner.calibration.validate import Validation, validate_ride
 from itt_planner.course.geometry import Course
-from itt_planner.course.track_files import SUFFIXES
+from itt_planner.course.track_files import track_format
 from itt_planner.model.rider import Rider
 from itt_planner.ocp.plan import Plan
 from itt_planner.view.report_sections import ReportSection
@@ -37,7 +37,7 @@ def course_ride(course: Course) -> Path | None:
     source reads `course.yaml (ride.fit)`); None for a built or demo course."""
     for candidate in (course.source, *re.findall(r"\(([^()]*)\)$", course.source)):
         path = Path(candidate)
-        if path.suffix.lower() in SUFFIXES and path.is_file():
+        if track_format(path) and path.is_file():
             return path
     return None
 

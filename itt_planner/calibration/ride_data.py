@@ -9,6 +9,7 @@ ride without stamps, power, altitude or movement, or one too short to fit anythi
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass
 from pathlib import Path
 from typing import cast
@@ -16,7 +17,7 @@ from typing import cast
 import numpy as np
 import pymap3d
 
-from itt_planner.course.track_files import Recording
+from itt_planner.course.track_files import Recording, track_bytes, track_format
 from itt_planner.errors import IttError
 from itt_planner.logs.ride_import import EARTH_RADIUS_M, PAUSE_MIN_S, POWER_SPIKE_W
 
@@ -93,34 +94,30 @@ class RideSeries:
         return float(np.sum(dt[same & (self.v_mps[1:] > MOVING_MPS)]))
 
 
-def record_temperature_c(path: Path) -> float | None:
-    """Mean `temperature` of a FIT file's records (the head unit's sensor), or None."""
-    if path.suffix.lower() != ".fit" or not path.is_file():
-        return None
-    import fitdecode  # noqa: PLC0415  (only FIT carries a temperature field)
+def _fit_messages(path: Path, message: str) -> list[dict[str, object]]:
+    """The fields of every `message` data message of a FIT file (gzipped or not); [] for
+    another format or a missing file (these are extras read beside `read_recording`)."""
+    if track_format(path) != ".fit" or not path.is_file():
+        return []
+    import fitdecode  # noqa: PLC0415  (only FIT carries these fields)
 
-    values: list[float] = []
-    with fitdecode.FitReader(str(path), check_crc=fitdecode.CrcCheck.WARN) as reader:
-        for frame in reader:
-            if frame.frame_type == fitdecode.FIT_FRAME_DATA and frame.name == "record":
-                values.extend(float(f.value) for f in frame.fields
-                              if f.name == "temperature" and f.value is not None)
+    with fitdecode.FitReader(io.BytesIO(track_bytes(path)),
+                             check_crc=fitdecode.CrcCheck.WARN) as reader:
+        return [{f.name: f.value for f in frame.fields} for frame in reader
+                if frame.frame_type == fitdecode.FIT_FRAME_DATA and frame.name == message]
+
+
+def record_temperature_c(path: Path) -> float | None:
+    """Median `temperature` of a FIT file's records (the head unit's sensor), or None."""
+    values = [float(cast(float, r["temperature"])) for r in _fit_messages(path, "record")
+              if r.get("temperature") is not None]
     return float(np.median(values)) if values else None
 
 
 def record_setup(path: Path) -> str | None:
     """The bike profile a FIT file names (`bike_profile.name`, e.g. "TT bike"), when it
     names exactly one; None otherwise (most files name none)."""
-    if path.suffix.lower() != ".fit" or not path.is_file():
-        return None
-    import fitdecode  # noqa: PLC0415
-
-    names: set[str] = set()
-    with fitdecode.FitReader(str(path), check_crc=fitdecode.CrcCheck.WARN) as reader:
-        for frame in reader:
-            if frame.frame_type == fitdecode.FIT_FRAME_DATA and frame.name == "bike_profile":
-                names.update(str(f.value).strip() for f in frame.fields
-                             if f.name == "name" and f.value)
+    names = {str(r["name"]).strip() for r in _fit_messages(path, "bike_profile") if r.get("name")}
     return names.pop() if len(names) == 1 else None
 
 

@@ -33,7 +33,7 @@ from itt_planner.course.builder import build_course_file
 from itt_planner.course.elevation import ElevationOptions
 from itt_planner.course.fit import CourseOptions, WidthStretch, fit_course
 from itt_planner.course.geometry import COURSE_SUFFIX, GPS_ROAD_WIDTH_M, Course
-from itt_planner.course.track_files import SUFFIXES, file_sha256, read_recording
+from itt_planner.course.track_files import SUFFIXES, file_sha256, read_recording, track_format
 from itt_planner.course.trim import TrimOptions, parse_mark
 from itt_planner.errors import CourseError
 
@@ -60,10 +60,10 @@ def load_course(spec: str | Path, options: CourseOptions | None = None) -> Cours
     """
     text = str(spec)
     path = Path(text)
-    is_track = path.suffix.lower() in SUFFIXES
+    is_track = bool(track_format(path))
     if options is not None and options != CourseOptions() and not is_track:
         raise CourseError(f"{text}: start/finish, route, elevation and road width options "
-                          "apply to a GPS track (.gpx/.tcx/.fit/.csv), not to this course")
+                          f"apply to a GPS track ({'/'.join(SUFFIXES)}), not to this course")
     if text in DEMO_COURSES and not path.exists():
         return build_course_file(demo_path(text))
     name = path.name.lower()
@@ -78,8 +78,8 @@ def load_course(spec: str | Path, options: CourseOptions | None = None) -> Cours
     if not path.exists():
         msg = (f"unknown course {text!r}: not a demo ({', '.join(DEMO_COURSES)}) nor a file")
         raise CourseError(msg)
-    msg = (f"{path}: unsupported course file; expected {', '.join(SUFFIXES)}, "
-           f"{COURSE_SUFFIX} or a segment .yaml")
+    msg = (f"{path}: unsupported course file; expected {', '.join(SUFFIXES)} (or the same "
+           f"gzipped), {COURSE_SUFFIX} or a segment .yaml")
     raise CourseError(msg)
 
 

@@ -1,17 +1,24 @@
 """Read GPS track and ride files (GPX tracks and routes, TCX activities and courses, FIT,
-CSV) into one record type.
+CSV, and the routes of web maps, KML/KMZ and GeoJSON, in `map_files`; each also gzipped)
+into one record type.
 
 Courses use only the positions; ride import also uses the stamps, speed and power.
 Parsing is left to well-kept libraries (gpxpy, tcxreader, fitdecode); this module only
 maps their records onto `Recording` arrays and turns their failures into `CourseError`
 naming the file.
+
+Two quirks of real exports are read as their authors meant: Strava's bulk export gzips
+its files (`123.fit.gz`, `123.tcx.gz`) and writes TCX (and some GPX) with spaces before
+the `<?xml` declaration, which strict XML parsers refuse.
 """
 
 from __future__ import annotations
 
 import csv
+import gzip
 import hashlib
 import io
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,7 +29,9 @@ from itt_planner.errors import CourseError
 
 #: FIT stores positions in semicircles: 2^31 semicircles = 180 degrees.
 _SEMICIRCLE_DEG = 180.0 / 2**31
-SUFFIXES = (".gpx", ".tcx", ".fit", ".csv")
+SUFFIXES = (".gpx", ".tcx", ".fit", ".csv", ".kml", ".kmz", ".geojson")
+#: A gzipped file of one of `SUFFIXES` (`ride.fit.gz`) is read as that format.
+GZIP_SUFFIX = ".gz"
 
 
 @dataclass(frozen=True, eq=False)
@@ -54,25 +63,62 @@ def file_sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def track_format(path: str | Path) -> str:
+    """The track format a file's name says, one of `SUFFIXES` (`.fit` for `ride.fit` and
+    `ride.fit.gz`), or "" when it names none."""
+    suffixes = [s.lower() for s in Path(path).suffixes[-2:]]
+    if suffixes and suffixes[-1] == GZIP_SUFFIX:
+        suffixes.pop()
+    return suffixes[-1] if suffixes and suffixes[-1] in SUFFIXES else ""
+
+
+def track_bytes(path: Path) -> bytes:
+    """A track file's content, decompressed when its name ends in `.gz`.
+
+    Raises:
+        CourseError: missing, empty or not gzip data (names the file).
+    """
+    if not path.is_file():
+        raise CourseError(f"{path}: no such file")
+    data = path.read_bytes()
+    if path.suffix.lower() == GZIP_SUFFIX:
+        try:
+            data = gzip.decompress(data)
+        except (OSError, EOFError, zlib.error) as err:
+            raise CourseError(f"{path}: not a valid gzip file ({err})") from None
+    if not data:
+        raise CourseError(f"{path}: the file is empty")
+    return data
+
+
+def xml_text(data: bytes) -> bytes:
+    """XML with what comes before its declaration removed (a byte-order mark, Strava's
+    spaces): XML allows nothing there, and such exports are otherwise well formed."""
+    return data.removeprefix(b"\xef\xbb\xbf").lstrip()
+
+
 def read_recording(path: str | Path) -> Recording:
-    """Read a GPX, TCX, FIT or CSV file.
+    """Read a GPX, TCX, FIT, CSV, KML, KMZ or GeoJSON file, or one of those gzipped
+    (`ride.fit.gz`).
 
     Raises:
         CourseError: missing or empty file, unknown suffix, or a parser failure, with the
             file name in the message.
     """
     path = Path(path)
-    if not path.is_file():
-        raise CourseError(f"{path}: no such file")
-    if path.stat().st_size == 0:
-        raise CourseError(f"{path}: the file is empty")
-    suffix = path.suffix.lower()
-    readers = {".gpx": _read_gpx, ".tcx": _read_tcx, ".fit": _read_fit, ".csv": _read_csv}
-    if suffix not in readers:
-        msg = f"{path}: unknown track format {suffix!r}; expected one of {', '.join(SUFFIXES)}"
+    suffix = track_format(path)
+    # map_files builds on this module's Recording: imported here, not at the top.
+    from itt_planner.course.map_files import read_geojson, read_kml  # noqa: PLC0415
+
+    readers = {".gpx": _read_gpx, ".tcx": _read_tcx, ".fit": _read_fit, ".csv": _read_csv,
+               ".kml": read_kml, ".kmz": read_kml, ".geojson": read_geojson}
+    if not suffix:
+        msg = (f"{path}: unknown track format {path.suffix.lower()!r}; expected one of "
+               f"{', '.join(SUFFIXES)} (or the same gzipped, {GZIP_SUFFIX})")
         raise CourseError(msg)
+    data = track_bytes(path)
     try:
-        rec = readers[suffix](path)
+        rec = readers[suffix](path, data)
     except CourseError:
         raise
     except Exception as err:  # noqa: BLE001  (the parsers raise many unrelated types on bad input)
@@ -92,10 +138,10 @@ def _opt(values: list[float | None]) -> np.ndarray | None:
     return None if np.all(np.isnan(arr)) else arr
 
 
-def _read_gpx(path: Path) -> Recording:
+def _read_gpx(path: Path, data: bytes) -> Recording:
     import gpxpy  # noqa: PLC0415  (lazy: only GPX needs it)
 
-    gpx = gpxpy.parse(path.read_text(encoding="utf-8", errors="replace"))
+    gpx = gpxpy.parse(xml_text(data).decode("utf-8", errors="replace"))
     # Track points, or a route's points (gpxpy types them apart; both have what is read).
     points: list[Any] = [p for trk in gpx.tracks for seg in trk.segments for p in seg.points]
     if not points:
@@ -117,7 +163,7 @@ def _read_gpx(path: Path) -> Recording:
     )
 
 
-def _read_tcx(path: Path) -> Recording:
+def _read_tcx(path: Path, data: bytes) -> Recording:
     """An activity, or a course (Garmin Connect's route export: `<Courses>`, which
     tcxreader's `read` skips; its own trackpoint parser reads those points)."""
     import xml.etree.ElementTree as ET  # noqa: PLC0415
@@ -126,10 +172,12 @@ def _read_tcx(path: Path) -> Recording:
     from tcxreader.tcxreader import GARMIN_XML_SCHEMA, TCXReader  # noqa: PLC0415
 
     reader = TCXReader()
-    ex = reader.read(str(path))
+    xml = xml_text(data)
+    # `read` takes a path, which it hands to ElementTree's `parse`: a file object works too.
+    ex = reader.read(io.BytesIO(xml))
     tps = ex.trackpoints or []
     if not tps:
-        root = ET.parse(path).getroot()
+        root = ET.fromstring(xml)
         for el in root.iterfind(f"{GARMIN_XML_SCHEMA}Courses/{GARMIN_XML_SCHEMA}Course/"
                                 f"{GARMIN_XML_SCHEMA}Track/{GARMIN_XML_SCHEMA}Trackpoint"):
             tp = TCXTrackPoint(tpx_ext={})
@@ -147,12 +195,12 @@ def _read_tcx(path: Path) -> Recording:
     )
 
 
-def _read_fit(path: Path) -> Recording:
+def _read_fit(path: Path, data: bytes) -> Recording:
     import fitdecode  # noqa: PLC0415
 
     rows: list[dict[str, Any]] = []
     device = ""
-    with fitdecode.FitReader(str(path), check_crc=fitdecode.CrcCheck.WARN) as reader:
+    with fitdecode.FitReader(io.BytesIO(data), check_crc=fitdecode.CrcCheck.WARN) as reader:
         for frame in reader:
             if frame.frame_type != fitdecode.FIT_FRAME_DATA:
                 continue
@@ -181,9 +229,9 @@ def _read_fit(path: Path) -> Recording:
     )
 
 
-def _read_csv(path: Path) -> Recording:
+def _read_csv(path: Path, data: bytes) -> Recording:
     """CSV either `lon,lat,ele` without header, or with a header naming lat/lon/ele columns."""
-    text = path.read_text(encoding="utf-8", errors="replace")
+    text = data.decode("utf-8-sig", errors="replace")
     rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
     if not rows:
         raise CourseError(f"{path}: no rows")

@@ -80,7 +80,8 @@ def import_ride(source: str | Path, output: str | Path, *, rider: str = "",
     """Write the GPS, speed and power of a recorded ride as an MCAP ride log.
 
     Args:
-        source: a `.fit`, `.gpx`, `.tcx` or `.csv` ride with timestamps.
+        source: a ride with timestamps in any format `read_recording` reads (FIT, GPX,
+            TCX, CSV, KML gx:Track, GeoJSON with stamps; gzipped or not).
         output: the `.mcap` file to write.
         rider: rider name for the log's metadata.
         namespace: ROS namespace of the topics.

@@ -25,7 +25,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from itt_planner.course.track_files import SUFFIXES
+from itt_planner.course.track_files import SUFFIXES, track_format
 from itt_planner.errors import IttError
 
 log = logging.getLogger(__name__)
@@ -49,9 +49,9 @@ def read_folders(folders: list[str | Path]) -> list[RiderRides]:
     for folder in map(Path, folders):
         if not folder.is_dir():
             raise IttError(f"{folder}: not a folder of ride files")
-        files = sorted(p for p in folder.iterdir() if p.suffix.lower() in SUFFIXES)
+        files = sorted(p for p in folder.iterdir() if track_format(p))
         if not files:
-            raise IttError(f"{folder}: no ride file ({', '.join(SUFFIXES)})")
+            raise IttError(f"{folder}: no ride file ({', '.join(SUFFIXES)}, or gzipped)")
         if folder.name in out:
             raise IttError(f"{folder}: a second folder named {folder.name!r} (rider names "
                            "come from the folder names)")

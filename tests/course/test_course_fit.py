@@ -95,7 +95,8 @@ def _write(tmp_path: Path, name: str, text: str) -> Path:
     ("same.csv", "11.0,45.0,100\n" * 50, "identical"),
     ("bad.gpx", "<gpx><trk><trkseg><trkpt lat='x'", "not a valid GPX"),
     ("bad.fit", "this is not a fit file at all", "not a valid FIT"),
-    ("route.kml", "<kml/>", "unknown track format"),
+    ("route.kml", "<kml/>", "no route in the KML"),
+    ("route.shp", "shapes", "unknown track format"),
 ])
 def test_bad_input_names_file_and_problem(tmp_path: Path, name: str, text: str,
                                            problem: str) -> None:

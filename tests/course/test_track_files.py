@@ -1,14 +1,18 @@
-"""Reading GPX/TCX/FIT/CSV into `Recording` (real files and small written ones)."""
+"""Reading GPX/TCX/FIT/CSV into `Recording` (real files and small written ones), and the
+same as Strava's bulk export writes them (gzipped; XML after leading spaces)."""
 
 from __future__ import annotations
 
+import gzip
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from itt_planner.course.track_files import file_sha256, read_recording
+from itt_planner.calibration.ride_data import record_temperature_c
+from itt_planner.course.loader import load_course
+from itt_planner.course.track_files import file_sha256, read_recording, track_format
 from itt_planner.errors import CourseError
 
 
@@ -50,9 +54,11 @@ def test_gpx_and_csv_with_header(tmp_path: Path) -> None:
 @pytest.mark.parametrize(("name", "text", "problem"), [
     ("missing.gpx", None, "no such file"),
     ("empty.tcx", "", "empty"),
-    ("x.kml", "<kml/>", "unknown track format"),
+    ("x.shp", "shapes", "unknown track format"),
     ("bad.csv", "lon,lat\nabc,45\n", "not a number"),
     ("bad.fit", "not a fit file", "not a valid FIT"),
+    ("bad.fit.gz", "not gzip data", "not a valid gzip file"),
+    ("ride.gz", "", "unknown track format"),
 ])
 def test_errors_name_the_file(tmp_path: Path, name: str, text: str | None, problem: str) -> None:
     path = tmp_path / name
@@ -61,3 +67,64 @@ def test_errors_name_the_file(tmp_path: Path, name: str, text: str | None, probl
     with pytest.raises(CourseError, match=problem) as info:
         read_recording(path)
     assert name in str(info.value)
+
+
+def _strava_tcx(n: int) -> str:
+    """A TCX activity as Strava exports it: ten spaces before the declaration, the
+    extension in a default namespace, stamps without fractions; 1 Hz due north at 10 m/s."""
+    points = "".join(
+        f"<Trackpoint><Time>2026-05-01T10:00:{i % 60:02d}Z</Time><Position>"
+        f"<LatitudeDegrees>{45 + i * 10 / 111_195:.7f}</LatitudeDegrees>"
+        f"<LongitudeDegrees>11.0</LongitudeDegrees></Position>"
+        f"<AltitudeMeters>{100 + 0.1 * i:.1f}</AltitudeMeters><Extensions><TPX "
+        f'xmlns="http://www.garmin.com/xmlschemas/ActivityExtension/v2"><Speed>10.0</Speed>'
+        f"<Watts>{250 + i}</Watts></TPX></Extensions></Trackpoint>" for i in range(n))
+    return ("          <?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<TrainingCenterDatabase "
+            'xmlns="http://www.garmin.com/xmlschemas/TrainingCenterDatabase/v2"><Activities>'
+            '<Activity Sport="Biking"><Id>2026-05-01T10:00:00Z</Id>'
+            '<Lap StartTime="2026-05-01T10:00:00Z"><Track>' + points
+            + "</Track></Lap></Activity></Activities></TrainingCenterDatabase>")
+
+
+def test_strava_exports_leading_spaces_and_gzip(tmp_path: Path) -> None:
+    # Strava's TCX (and some of its GPX) start with spaces before `<?xml`, which XML
+    # forbids and ElementTree refuses; its bulk export gzips the files.
+    plain = tmp_path / "1234.tcx"
+    plain.write_text(_strava_tcx(50))
+    packed = tmp_path / "1234.tcx.gz"
+    packed.write_bytes(gzip.compress(plain.read_bytes()))
+    for path in (plain, packed):
+        rec = read_recording(path)
+        assert len(rec) == 50 and rec.power_w is not None and rec.speed_mps is not None
+        assert rec.power_w[-1] == 299 and rec.speed_mps[0] == 10.0
+        assert rec.sha256 == file_sha256(path)
+    gpx = tmp_path / "1234.gpx"
+    gpx.write_bytes(b"\xef\xbb\xbf   " + (
+        '<?xml version="1.0"?><gpx version="1.1" creator="StravaGPX"><trk><trkseg>'
+        + "".join(f'<trkpt lat="45.{i:04d}" lon="11.0"><ele>{100 + i}</ele></trkpt>'
+                  for i in range(5)) + "</trkseg></trk></gpx>").encode())
+    assert len(read_recording(gpx)) == 5 and read_recording(gpx).device == "StravaGPX"
+
+
+def test_a_gzipped_fit_is_the_fit(tmp_path: Path, data_file: Callable[[str], Path]) -> None:
+    src = data_file("rides/edge810_vector_stjohns_2013.fit")
+    packed = tmp_path / f"{src.name}.gz"
+    packed.write_bytes(gzip.compress(src.read_bytes()))
+    assert track_format(packed) == ".fit" and track_format(tmp_path / "a.b.gz") == ""
+    a, b = read_recording(src), read_recording(packed)
+    for name in ("lat_deg", "lon_deg", "ele_m", "time_s", "speed_mps", "power_w"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    assert a.device == b.device and b.sha256 == file_sha256(packed) != a.sha256
+    # The extras calibration reads beside the records (the head unit's temperature).
+    assert record_temperature_c(packed) == record_temperature_c(src) is not None
+
+
+def test_a_gzipped_route_loads_as_a_course(tmp_path: Path) -> None:
+    # 2 km due east, a point every 20 m: `load_course` takes the .gpx.gz as a GPS track.
+    gpx = ('<?xml version="1.0"?><gpx version="1.1" creator="t"><rte>'
+           + "".join(f'<rtept lat="45.0" lon="{11 + i * 20 / 78_850:.7f}"><ele>100</ele>'
+                     "</rtept>" for i in range(101)) + "</rte></gpx>")
+    path = tmp_path / "route.gpx.gz"
+    path.write_bytes(gzip.compress(gpx.encode()))
+    course = load_course(path)
+    assert course.name == "route" and 1950 < course.length_m < 2050

@@ -1,0 +1,158 @@
+"""Read routes drawn on web maps into a `Recording`: KML and KMZ (Google Earth, Google My
+Maps, RideWithGPS) through fastkml, and GeoJSON (geojson.io, OpenRouteService, togeojson's
+conversions of GPX), which is plain JSON (RFC 7946).
+
+Only lines make a route: a KML Placemark's LineString (also inside a MultiGeometry) or its
+gx:Track / gx:MultiTrack (with their stamps); a GeoJSON LineString or MultiLineString, bare,
+in a Feature, a FeatureCollection or a GeometryCollection, with togeojson's stamps per point
+(`properties.coordinateProperties.times`, or the older `properties.coordTimes`). Markers
+(points) and areas (polygons) are not read. Several lines are joined in document order, as
+the GPX reader joins tracks and segments. Coordinates are longitude, latitude and, when
+given, altitude in metres.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import zipfile
+from collections.abc import Iterator
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from itt_planner.course.track_files import Recording, file_sha256, track_format, xml_text
+from itt_planner.errors import CourseError
+
+#: One route point: longitude, latitude, altitude (NaN when absent), POSIX stamp (NaN).
+_Row = tuple[float, float, float, float]
+_NAN = float("nan")
+
+
+def read_kml(path: Path, data: bytes) -> Recording:
+    """The lines of a KML file, or of the KML inside a KMZ (`doc.kml`, else its first)."""
+    from fastkml import KML  # noqa: PLC0415  (lazy: only KML needs it)
+
+    if track_format(path) == ".kmz":
+        data = _kmz_document(path, data)
+    # Not validated against the schema: exports carry vendors' extensions; bad coordinates
+    # still raise (strict parsing).
+    kml = KML.parse(io.BytesIO(xml_text(data)), validate=False)
+    rows = [row for placemark in _placemarks(kml) for row in _kml_rows(placemark)]
+    if not rows:
+        raise CourseError(f"{path}: no route in the KML (a LineString or gx:Track in a "
+                          "Placemark; points and polygons are not a route)")
+    return _recording(path, rows)
+
+
+def read_geojson(path: Path, data: bytes) -> Recording:
+    """The lines of a GeoJSON document (module docstring)."""
+    try:
+        doc = json.loads(data)
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise CourseError(f"{path}: not valid JSON ({err})") from None
+    rows = list(_geojson_rows(path, doc, {}))
+    if not rows:
+        raise CourseError(f"{path}: no route in the GeoJSON (a LineString or MultiLineString; "
+                          "points and polygons are not a route)")
+    return _recording(path, rows)
+
+
+def _recording(path: Path, rows: list[_Row]) -> Recording:
+    arr = np.array(rows, dtype=float)
+    stamps = arr[:, 3]
+    return Recording(path=path, sha256=file_sha256(path), lat_deg=arr[:, 1],
+                     lon_deg=arr[:, 0], ele_m=arr[:, 2],
+                     time_s=None if np.all(np.isnan(stamps)) else stamps)
+
+
+def _kmz_document(path: Path, data: bytes) -> bytes:
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as kmz:
+            names = [n for n in kmz.namelist() if n.lower().endswith(".kml")]
+            if not names:
+                raise CourseError(f"{path}: no .kml document inside the KMZ")
+            return kmz.read("doc.kml" if "doc.kml" in names else names[0])
+    except zipfile.BadZipFile as err:
+        raise CourseError(f"{path}: not a valid KMZ (zip) file ({err})") from None
+
+
+def _placemarks(feature: Any) -> Iterator[Any]:
+    """Every Placemark under a KML object, in document order (through Documents, Folders)."""
+    from fastkml import Placemark  # noqa: PLC0415
+
+    if isinstance(feature, Placemark):
+        yield feature
+    for child in getattr(feature, "features", None) or ():
+        yield from _placemarks(child)
+
+
+def _kml_rows(placemark: Any) -> Iterator[_Row]:
+    """A Placemark's route points. Read from fastkml's own objects, not their pygeoif
+    shapes, which drop repeated points (a stamped track's standing still)."""
+    from fastkml import geometry, gx  # noqa: PLC0415
+
+    shapes = [placemark.kml_geometry]
+    while shapes:
+        shape = shapes.pop(0)
+        if isinstance(shape, gx.MultiTrack | geometry.MultiGeometry):
+            shapes[:0] = list(shape.tracks if isinstance(shape, gx.MultiTrack)
+                              else shape.kml_geometries)
+        elif isinstance(shape, gx.Track):
+            for item in shape.track_items or ():
+                # A <when> may be a bare date: no stamp for the point then.
+                when = item.when.dt if item.when else None
+                stamp = when.timestamp() if isinstance(when, datetime) else _NAN
+                yield *_position(next(iter(item.coord.coords))), stamp
+        elif isinstance(shape, geometry.LineString) and shape.kml_coordinates:
+            yield from ((*_position(xyz), _NAN) for xyz in shape.kml_coordinates.coords)
+
+
+def _position(xyz: tuple[float, ...]) -> tuple[float, float, float]:
+    return float(xyz[0]), float(xyz[1]), float(xyz[2]) if len(xyz) > 2 else _NAN
+
+
+def _geojson_rows(path: Path, obj: Any, props: dict[str, Any]) -> Iterator[_Row]:
+    """The route points of a GeoJSON object; `props` are its Feature's properties."""
+    if not isinstance(obj, dict):
+        raise CourseError(f"{path}: a GeoJSON object is not a JSON object: {str(obj)[:60]!r}")
+    kind = obj.get("type")
+    if kind == "FeatureCollection":
+        for feature in obj.get("features") or ():
+            yield from _geojson_rows(path, feature, {})
+    elif kind == "Feature":
+        if obj.get("geometry") is not None:
+            yield from _geojson_rows(path, obj["geometry"], obj.get("properties") or {})
+    elif kind == "GeometryCollection":
+        for part in obj.get("geometries") or ():
+            yield from _geojson_rows(path, part, {})
+    elif kind in ("LineString", "MultiLineString"):
+        lines = obj.get("coordinates")
+        lines = [lines] if kind == "LineString" else lines
+        times = (props.get("coordinateProperties") or {}).get("times", props.get("coordTimes"))
+        times = [times] if kind == "LineString" else times
+        for k, line in enumerate(lines or ()):
+            stamps = _stamps(path, times[k] if isinstance(times, list) and k < len(times)
+                             else None, len(line))
+            for xyz, stamp in zip(line, stamps, strict=True):
+                if not (isinstance(xyz, list) and len(xyz) >= 2
+                        and all(isinstance(c, int | float) for c in xyz)):
+                    raise CourseError(f"{path}: a {kind} position is not [longitude, "
+                                      f"latitude(, altitude)] numbers: {xyz!r}")
+                yield *_position(tuple(xyz)), stamp
+    elif not isinstance(kind, str):
+        raise CourseError(f"{path}: a GeoJSON object without a 'type': {str(obj)[:60]!r}")
+
+
+def _stamps(path: Path, times: Any, n: int) -> list[float]:
+    """togeojson's ISO 8601 stamps of one line, or NaN for each point without them."""
+    if not isinstance(times, list) or len(times) != n:
+        return [_NAN] * n
+    try:
+        # A stamp without a zone is UTC, as GPX's and KML's are.
+        return [_NAN if not t else datetime.fromisoformat(t).replace(
+            tzinfo=datetime.fromisoformat(t).tzinfo or UTC).timestamp() for t in times]
+    except (TypeError, ValueError) as err:
+        raise CourseError(f"{path}: a point's time is not an ISO 8601 stamp ({err})") from None
