@@ -9,6 +9,7 @@ ride without stamps, power, altitude or movement, or one too short to fit anythi
 
 from __future__ import annotations
 
+import dataclasses
 import io
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +34,11 @@ DEFAULT_TEMPERATURE_C = 15.0
 MOVING_MPS = 1.0
 #: Shortest moving time any estimator accepts (s).
 MIN_MOVING_S = 600.0
+#: Smart recording (many Garmin units' default) writes a record every 1-8 s while moving,
+#: more often where speed or heading change. A gap up to this long, across which the rider
+#: moved at `MOVING_MPS` or more, is filled at 1 s (linear) so that the estimators' windows
+#: and smoothing, written for 1 Hz, see 1 Hz; longer gaps and standing stay pauses.
+SPARSE_FILL_MAX_S = 15.0
 
 
 class CalibrationError(IttError):
@@ -68,6 +74,8 @@ class RideSeries:
             reference for the noise floor.
         speed_source: "device" or "gps".
         temperature_c: the mean temperature used for the air density.
+        filled_s: samples interpolated at 1 s between sparse records
+            (`SPARSE_FILL_MAX_S`); 0 for a 1 Hz record.
     """
 
     source: str
@@ -83,6 +91,7 @@ class RideSeries:
     gps_speed_mps: np.ndarray
     speed_source: str
     temperature_c: float
+    filled_s: int = 0
 
     def __len__(self) -> int:
         return len(self.t_s)
@@ -132,6 +141,39 @@ def gps_speed_mps(lat_deg: np.ndarray, lon_deg: np.ndarray, t_s: np.ndarray) -> 
     return np.concatenate([[np.nan], speed])
 
 
+def fill_sparse_records(rec: Recording) -> tuple[Recording, int]:
+    """The record with smart recording's gaps filled at 1 s (`SPARSE_FILL_MAX_S`), and
+    the number of samples added. Stamps must be finite, sorted and distinct."""
+    assert rec.time_s is not None
+    t = rec.time_s
+    dt = np.diff(t)
+    lat, lon = np.radians(rec.lat_deg), np.radians(rec.lon_deg)
+    moved = EARTH_RADIUS_M * pymap3d.haversine.anglesep(lon[:-1], lat[:-1], lon[1:], lat[1:],
+                                                        deg=False)
+    if rec.speed_mps is not None:  # no fix at an end: the wheel speed says whether it moved
+        v = rec.speed_mps
+        moved = np.where(np.isfinite(moved), moved, np.fmin(v[:-1], v[1:]) * dt)
+    fill = np.flatnonzero((dt >= 2.0) & (dt <= SPARSE_FILL_MAX_S)
+                          & (np.nan_to_num(moved) >= MOVING_MPS * dt))
+    if not len(fill):
+        return rec, 0
+    added = np.concatenate([np.arange(t[i] + 1.0, t[i + 1] - 0.5, 1.0) for i in fill])
+    grid = np.sort(np.concatenate([t, added]))
+
+    def on_grid(values: np.ndarray) -> np.ndarray:
+        # NaN at either end of a gap leaves its filled samples NaN (missing, as before).
+        return cast(np.ndarray, np.interp(grid, t, values))
+
+    def maybe(values: np.ndarray | None) -> np.ndarray | None:
+        return None if values is None else on_grid(values)
+
+    filled = dataclasses.replace(
+        rec, lat_deg=on_grid(rec.lat_deg), lon_deg=on_grid(rec.lon_deg),
+        ele_m=on_grid(rec.ele_m), time_s=grid, speed_mps=maybe(rec.speed_mps),
+        power_w=maybe(rec.power_w), cadence_rpm=maybe(rec.cadence_rpm))
+    return filled, len(added)
+
+
 def prepare_ride(rec: Recording, *, temperature_c: float | None = None,
                  min_moving_s: float = MIN_MOVING_S) -> RideSeries:
     """The ride's series for the estimators.
@@ -153,24 +195,28 @@ def prepare_ride(rec: Recording, *, temperature_c: float | None = None,
                                "needs the climbing work")
     ok = np.isfinite(rec.time_s)
     order = np.flatnonzero(ok)[np.argsort(rec.time_s[ok], kind="stable")]
-    t_abs = rec.time_s[order]
     # Duplicate stamps (some head units write two records a second) keep the first.
-    first = np.concatenate([[True], np.diff(t_abs) > 0])
-    order, t_abs = order[first], t_abs[first]
-    lat, lon = rec.lat_deg[order], rec.lon_deg[order]
+    order = order[np.concatenate([[True], np.diff(rec.time_s[order]) > 0])]
+    rec, filled = fill_sparse_records(dataclasses.replace(
+        rec, lat_deg=rec.lat_deg[order], lon_deg=rec.lon_deg[order], ele_m=ele_all[order],
+        time_s=rec.time_s[order], speed_mps=_take(rec.speed_mps, order),
+        power_w=rec.power_w[order], cadence_rpm=_take(rec.cadence_rpm, order)))
+    assert rec.time_s is not None
+    assert rec.power_w is not None
+    t_abs, lat, lon = rec.time_s, rec.lat_deg, rec.lon_deg
     gps_v = gps_speed_mps(lat, lon, t_abs)
-    if rec.speed_mps is not None and np.sum(np.isfinite(rec.speed_mps[order])) > len(order) // 2:
-        speed, source = rec.speed_mps[order], "device"
-    elif np.sum(np.isfinite(gps_v)) > len(order) // 2:
+    if rec.speed_mps is not None and np.sum(np.isfinite(rec.speed_mps)) > len(rec) // 2:
+        speed, source = rec.speed_mps, "device"
+    elif np.sum(np.isfinite(gps_v)) > len(rec) // 2:
         speed, source = gps_v, "gps"
     else:
         raise CalibrationError(f"{where}: neither a speed sensor nor GPS positions; "
                                "no speed to fit against")
     speed = _fill(np.asarray(speed, float))
-    power = np.nan_to_num(np.asarray(rec.power_w, float)[order], nan=0.0)
+    power = np.nan_to_num(np.asarray(rec.power_w, float), nan=0.0)
     # A meter glitch (above any sprint) carries no information: read it as missing (0).
     power = np.where(power > POWER_SPIKE_W, 0.0, power)
-    ele = _fill(ele_all[order])
+    ele = _fill(np.asarray(rec.ele_m, float))
     t = t_abs - t_abs[0]
     block = np.concatenate([[0], np.cumsum(np.diff(t) > PAUSE_MIN_S)])
     dt = np.diff(t)
@@ -183,12 +229,16 @@ def prepare_ride(rec: Recording, *, temperature_c: float | None = None,
     series = RideSeries(
         source=where, t_s=t, v_mps=speed, power_w=power, ele_m=ele, dist_m=dist,
         rho_kgpm3=air_density_kgpm3(ele, temp), block=block, lat_deg=lat, lon_deg=lon,
-        gps_speed_mps=gps_v, speed_source=source, temperature_c=temp,
+        gps_speed_mps=gps_v, speed_source=source, temperature_c=temp, filled_s=filled,
     )
     if series.moving_time_s < min_moving_s:
         raise CalibrationError(f"{where}: too short: {series.moving_time_s:.0f} s of moving "
                                f"time, at least {min_moving_s:.0f} s needed")
     return series
+
+
+def _take(values: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
+    return None if values is None else values[index]
 
 
 def _fill(values: np.ndarray) -> np.ndarray:

@@ -13,6 +13,8 @@ from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit
 
 def _human_calibration(r: dict[str, Any]) -> str:
     lines = [f"rider from {', '.join(r['rides'])}:"]
+    lines += [f"  {src}: {n} s filled at 1 s between sparse records (smart recording)"
+              for src, n in zip(r["rides"], r["filled_s"], strict=True) if n]
     a = r["aero"]
     if a:
         mass = (f"mass {a['mass_kg']} +- {a['mass_std_kg']} kg (estimated)"

@@ -209,7 +209,10 @@ def close_loop(track: Track, settings: CleanSettings = CleanSettings()) -> Track
         ahead = (np.array([x[far[0]] - x[0], y[far[0]] - y[0]]) if len(far)
                  else np.array([1.0, 0.0]))
         ahead /= np.linalg.norm(ahead)
+        # The last 90 m, and at least the last 10 fixes: a sparse record (smart recording,
+        # a fix every 20-70 m) may have none within the gap in its last 90 m.
         tail = len(x) - 1 - np.flatnonzero(np.cumsum(step[::-1]) < 3 * settings.closed_loop_gap_m)
+        tail = np.union1d(tail, np.arange(max(len(x) - 10, 0), len(x) - 1))[::-1]
         tail = np.concatenate([[len(x) - 1], tail])
         dist = np.hypot(x[tail] - x[0], y[tail] - y[0])
         before = (x[tail] - x[0]) * ahead[0] + (y[tail] - y[0]) * ahead[1] < 0

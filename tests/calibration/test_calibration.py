@@ -22,7 +22,7 @@ from itt_planner.calibration import (
     write_rider,
 )
 from itt_planner.calibration.calibrate import CalibrationResult, load_rides, write_setup_riders
-from itt_planner.calibration.ride_data import air_density_kgpm3
+from itt_planner.calibration.ride_data import air_density_kgpm3, fill_sparse_records
 from itt_planner.course.geometry import Course
 from itt_planner.course.track_files import Recording
 from itt_planner.model.conditions import Conditions
@@ -97,6 +97,51 @@ def test_synthetic_truth_recovered(synthetic: Synthetic, tmp_path: Path) -> None
     assert rider.drag_area_m2 == pytest.approx(result.aero.cda_m2, rel=1e-5)
     assert rider.critical_power_w == pytest.approx(result.cp_2p.cp_w, rel=1e-5)
     assert rider.mass_kg == TRUTH.mass_kg
+
+
+def _smart_recording(rec: Recording, seed: int) -> Recording:
+    """The record as smart recording keeps it: one record every 1-7 s (random)."""
+    rng = np.random.default_rng(seed)
+    keep = np.cumsum(rng.integers(1, 8, size=len(rec)))
+    keep = keep[keep < len(rec)]
+    return dataclasses.replace(rec, **{
+        f.name: getattr(rec, f.name)[keep] for f in dataclasses.fields(rec)
+        if isinstance(getattr(rec, f.name), np.ndarray)})
+
+
+def test_smart_recording_truth_recovered(synthetic: Synthetic) -> None:
+    """The same bars as above on the ride with 3 of 4 records dropped (gaps of 1-7 s, as
+    smart recording writes): split at every gap over 5 s, the ride was refused (aero: 0
+    stretches; CP: longest effort 45 s on the real St John's ride thinned alike)."""
+    course, rec = synthetic
+    sparse = _smart_recording(rec, seed=5)
+    assert len(sparse) < 0.3 * len(rec)
+    result = calibrate([sparse], CalibrationOptions(mass_kg=TRUTH.mass_kg), courses=[course])
+    assert result.aero is not None and result.cp_2p is not None, result.refusals
+    assert result.rides[0].filled_s > 2 * len(sparse)
+    assert result.aero.cda_m2 == pytest.approx(TRUTH.drag_area_m2, rel=0.05)
+    assert result.aero.crr == pytest.approx(TRUTH.crr, rel=0.15)
+    assert result.cp_2p.cp_w == pytest.approx(TRUTH.critical_power_w, rel=0.05)
+    assert result.cp_2p.w_prime_j == pytest.approx(TRUTH.w_prime_j, rel=0.15)
+
+
+def test_only_gaps_ridden_through_are_filled(synthetic: Synthetic) -> None:
+    _, rec = synthetic
+    assert fill_sparse_records(rec)[1] == 0  # 1 Hz: untouched
+    assert rec.time_s is not None
+    # Records 100-109 dropped while riding (filled back at 1 s); at 200-209 the rider
+    # stands (the position held): a pause, left as a gap.
+    lat, lon = rec.lat_deg.copy(), rec.lon_deg.copy()
+    lat[200:211], lon[200:211] = lat[200], lon[200]
+    drop = np.r_[100:110, 201:210]
+    stood = dataclasses.replace(
+        rec, lat_deg=np.delete(lat, drop), lon_deg=np.delete(lon, drop),
+        time_s=np.delete(rec.time_s, drop), ele_m=np.delete(rec.ele_m, drop),
+        speed_mps=None, power_w=None, cadence_rpm=None)
+    filled, added = fill_sparse_records(stood)
+    assert added == 10 and filled.time_s is not None
+    np.testing.assert_allclose(filled.time_s[:200], rec.time_s[:200])
+    assert filled.time_s[201] - filled.time_s[200] == pytest.approx(10.0)
 
 
 def test_synthetic_mass_estimated(synthetic: Synthetic) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -10,8 +11,9 @@ import numpy as np
 import pytest
 from support.synthetic_track import bar_passes, fit_errors
 
-from itt_planner.course.fit import fit_course_file
+from itt_planner.course.fit import fit_course, fit_course_file
 from itt_planner.course.geometry import Course
+from itt_planner.course.track_files import read_recording
 from itt_planner.errors import CourseError
 
 SEEDS = range(20)
@@ -80,6 +82,25 @@ def test_sauerland_pauses_and_jumps_leave_no_spurious_geometry(
     course = real_course("rides/sauerland_2025.fit")
     assert course.length_m == pytest.approx(99_000.0, rel=0.03)
     assert not course.closed_loop
+
+
+def test_a_smart_recorded_loop_is_the_loop(real_course: Callable[[str], Course],
+                                          data_file: Callable[[str], Path]) -> None:
+    # St John's with one record every 1-7 s (smart recording): its last fix within 30 m
+    # of the start came 139 m of track before the end, outside the 90 m searched, and the
+    # two-lap loop became a point-to-point course with a corner at the seam.
+    ride = real_course("rides/edge810_vector_stjohns_2013.fit")
+    rec = read_recording(data_file("rides/edge810_vector_stjohns_2013.fit"))
+    assert rec.time_s is not None
+    keep = np.cumsum(np.random.default_rng(1).integers(1, 8, size=len(rec)))
+    keep = keep[keep < len(rec)]
+    smart = fit_course(dataclasses.replace(rec, lat_deg=rec.lat_deg[keep],
+                                           lon_deg=rec.lon_deg[keep], ele_m=rec.ele_m[keep],
+                                           time_s=rec.time_s[keep], speed_mps=None, power_w=None,
+                                           cadence_rpm=None))
+    assert smart.closed_loop and ride.closed_loop
+    assert smart.length_m == pytest.approx(ride.length_m, rel=0.003)
+    assert len(smart.corners) == len(ride.corners)
 
 
 def _write(tmp_path: Path, name: str, text: str) -> Path:
