@@ -6,7 +6,8 @@ process): wheel speed measures `v`, and each GPS fix, map-matched to the course
 fails a chi-square gate (a 100 m jump) or that lies far off the road is rejected and
 counted. After several consecutive rejections the estimator is "lost" and re-acquires
 globally. Without GPS (tunnels, dropouts) the filter dead-reckons on wheel speed; its `s`
-variance grows so the returning fixes are accepted and pull it back.
+variance grows so the returning fixes are accepted and pull it back. Without wheel speed
+the fixes alone measure `v`; without either, `v` decays (a rider stopping).
 
 The published `s` never moves backwards: it follows the filter with a bounded forward
 catch-up and, when the filter falls behind it, slows down instead of jumping back. On a
@@ -58,17 +59,15 @@ class EstimatorSettings:
         speed_std_mps: wheel-speed noise.
         accel_std_mps2: process noise, the rider's unmodelled acceleration.
         odometry_drift: dead-reckoning error as a fraction of the distance travelled
-            (wheel circumference error, the wheel speed measuring the bicycle's path
-            rather than the centre line).
+            (wheel circumference error, the wheel's path is not the centre line).
         gate_sigma: a GPS `s` innovation beyond this many sigmas is an outlier ...
         gate_floor_m: ... unless it is smaller than this (so a confident filter still
             accepts ordinary GPS noise).
         off_course_m: a fix farther than this beyond the road edge is off the course.
         search_margin_m: the local search window is predicted `s` +/- (this + 4 sigma).
         lost_after: this many consecutive rejected fixes trigger a global re-acquisition.
-        speed_stale_s: wheel speed older than this is not trusted for dead reckoning:
-            the speed then decays (a stopped or sensorless rider) instead of running on.
-        speed_decay_s: time constant of that decay.
+        speed_stale_s, gps_stale_s, speed_decay_s: with neither a wheel speed nor a fix
+            this recent, the speed decays with this time constant instead of running on.
         power_hold_s: a power reading holds at most this long; beyond it power counts as 0.
         max_power_w: readings above this are spikes.
         max_speed_mps: wheel speeds above this are glitches.
@@ -98,6 +97,7 @@ class EstimatorSettings:
     search_margin_m: float = 60.0
     lost_after: int = 5
     speed_stale_s: float = 3.0
+    gps_stale_s: float = 10.0
     speed_decay_s: float = 2.0
     power_hold_s: float = 5.0
     max_power_w: float = 3000.0
@@ -330,8 +330,8 @@ class StateEstimator:
             return
         st = self.settings
         v = self._x[1]
-        if stamp - self._speed_t > st.speed_stale_s:
-            # No fresh wheel speed: do not run on at the last speed through a long gap.
+        if stamp - self._speed_t > st.speed_stale_s and stamp - self._gps_t > st.gps_stale_s:
+            # No fresh speed nor fix: do not run on at the last speed through a long gap.
             decay = math.exp(-dt / st.speed_decay_s)
             ds = v * st.speed_decay_s * (1 - decay)
             self._x = np.array([self._x[0] + ds, v * decay])
