@@ -68,7 +68,7 @@ class EstimatorSettings:
         lost_after: this many consecutive rejected fixes trigger a global re-acquisition.
         speed_stale_s, gps_stale_s, speed_decay_s: with neither a wheel speed nor a fix
             this recent, the speed decays with this time constant instead of running on.
-        power_hold_s: a power reading holds at most this long; beyond it power counts as 0.
+        power_hold_s: a reading holds this long at most (smart recording: 1-8 s steps), then 0.
         max_power_w: readings above this are spikes.
         max_speed_mps: wheel speeds above this are glitches.
         max_lag_s: a sample older than the filter time by more than this is dropped
@@ -99,7 +99,7 @@ class EstimatorSettings:
     speed_stale_s: float = 3.0
     gps_stale_s: float = 10.0
     speed_decay_s: float = 2.0
-    power_hold_s: float = 5.0
+    power_hold_s: float = 10.0
     max_power_w: float = 3000.0
     max_speed_mps: float = 35.0
     max_lag_s: float = 2.0
