@@ -2,7 +2,7 @@
 engine's advice on the 3D model, and the demo ride logs made from it.
 
     hairpin     the short technical test course of the closed-loop tests
-    sensors     simulated GPS, wheel-speed and power sensors
+    sensors     simulated GPS, wheel-speed and power sensors; smart recording's thinning
     scenarios   how the truth differs from the belief, and the rider's policy
     behaviour   the rider's lag, noise and controller gains; the grip the planner assumes
     step        one time step of the 3D model under the rider's controller (CasADi)
@@ -18,8 +18,9 @@ from itt_planner.sim.demo_bags import record_simulated_ride
 from itt_planner.sim.hairpin import HAIRPIN_COURSE, hairpin_course
 from itt_planner.sim.loop import SimResult, simulate_ride
 from itt_planner.sim.scenarios import Policy, Scenario, ScenarioSettings
-from itt_planner.sim.sensors import Sensors, SensorSettings, sensor_samples
+from itt_planner.sim.sensors import Sensors, SensorSettings, sensor_samples, smart_recording
 
 __all__ = ["HAIRPIN_COURSE", "Policy", "RiderBehaviour", "Scenario", "ScenarioSettings",
            "SensorSettings", "Sensors", "SimResult", "compare_policies", "hairpin_course",
-           "planning_conditions", "record_simulated_ride", "sensor_samples", "simulate_ride"]
+           "planning_conditions", "record_simulated_ride", "sensor_samples", "simulate_ride",
+           "smart_recording"]

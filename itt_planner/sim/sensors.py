@@ -1,14 +1,17 @@
 """Simulated GPS, wheel-speed and power sensors sampling a true trajectory at their rates,
-with a wandering GPS bias, dropouts and outliers."""
+with a wandering GPS bias, dropouts and outliers; and a recorded ride as a head unit on
+smart recording would have kept it."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from itt_planner.course.geometry import Course
+from itt_planner.course.track_files import Recording
 from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
 
 
@@ -110,3 +113,13 @@ def sensor_samples(course: Course, t_s: np.ndarray, s_m: np.ndarray, n_m: np.nda
         out += sensors.sample(float(t_s[k]), float(s_m[k]), float(n_m[k]), float(v_mps[k]),
                               float(power_w[k]))
     return out
+
+
+def smart_recording(rec: Recording, seed: int, max_step: int = 7) -> Recording:
+    """The records of a 1 Hz ride that a head unit on smart recording (many Garmin
+    units' default) would have kept: one every 1 to `max_step` records, at random."""
+    keep = np.cumsum(np.random.default_rng(seed).integers(1, max_step + 1, size=len(rec)))
+    keep = keep[keep < len(rec)]
+    return dataclasses.replace(rec, **{  # every array thinned alike
+        f.name: getattr(rec, f.name)[keep] for f in dataclasses.fields(rec)
+        if isinstance(getattr(rec, f.name), np.ndarray)})

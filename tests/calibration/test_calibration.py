@@ -27,7 +27,7 @@ from itt_planner.course.geometry import Course
 from itt_planner.course.track_files import Recording
 from itt_planner.model.conditions import Conditions
 from itt_planner.model.rider import load_rider
-from itt_planner.sim import simulate_ride
+from itt_planner.sim import simulate_ride, smart_recording
 
 #: The synthetic course and the virtual rider's recording on it.
 Synthetic = tuple[Course, Recording]
@@ -99,22 +99,12 @@ def test_synthetic_truth_recovered(synthetic: Synthetic, tmp_path: Path) -> None
     assert rider.mass_kg == TRUTH.mass_kg
 
 
-def _smart_recording(rec: Recording, seed: int) -> Recording:
-    """The record as smart recording keeps it: one record every 1-7 s (random)."""
-    rng = np.random.default_rng(seed)
-    keep = np.cumsum(rng.integers(1, 8, size=len(rec)))
-    keep = keep[keep < len(rec)]
-    return dataclasses.replace(rec, **{
-        f.name: getattr(rec, f.name)[keep] for f in dataclasses.fields(rec)
-        if isinstance(getattr(rec, f.name), np.ndarray)})
-
-
 def test_smart_recording_truth_recovered(synthetic: Synthetic) -> None:
     """The same bars as above on the ride with 3 of 4 records dropped (gaps of 1-7 s, as
     smart recording writes): split at every gap over 5 s, the ride was refused (aero: 0
     stretches; CP: longest effort 45 s on the real St John's ride thinned alike)."""
     course, rec = synthetic
-    sparse = _smart_recording(rec, seed=5)
+    sparse = smart_recording(rec, seed=5)
     assert len(sparse) < 0.3 * len(rec)
     result = calibrate([sparse], CalibrationOptions(mass_kg=TRUTH.mass_kg), courses=[course])
     assert result.aero is not None and result.cp_2p is not None, result.refusals

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -15,6 +14,7 @@ from itt_planner.course.fit import fit_course, fit_course_file
 from itt_planner.course.geometry import Course
 from itt_planner.course.track_files import read_recording
 from itt_planner.errors import CourseError
+from itt_planner.sim import smart_recording
 
 SEEDS = range(20)
 
@@ -91,13 +91,7 @@ def test_a_smart_recorded_loop_is_the_loop(real_course: Callable[[str], Course],
     # two-lap loop became a point-to-point course with a corner at the seam.
     ride = real_course("rides/edge810_vector_stjohns_2013.fit")
     rec = read_recording(data_file("rides/edge810_vector_stjohns_2013.fit"))
-    assert rec.time_s is not None
-    keep = np.cumsum(np.random.default_rng(1).integers(1, 8, size=len(rec)))
-    keep = keep[keep < len(rec)]
-    smart = fit_course(dataclasses.replace(rec, lat_deg=rec.lat_deg[keep],
-                                           lon_deg=rec.lon_deg[keep], ele_m=rec.ele_m[keep],
-                                           time_s=rec.time_s[keep], speed_mps=None, power_w=None,
-                                           cadence_rpm=None))
+    smart = fit_course(smart_recording(rec, seed=1))
     assert smart.closed_loop and ride.closed_loop
     assert smart.length_m == pytest.approx(ride.length_m, rel=0.003)
     assert len(smart.corners) == len(ride.corners)

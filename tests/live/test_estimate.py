@@ -17,7 +17,7 @@ from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
 from itt_planner.live.wprime_balance import WPrimeBalance
 from itt_planner.model.rider import PRESETS
 from itt_planner.model.state import RiderState
-from itt_planner.sim import SensorSettings, hairpin_course, sensor_samples
+from itt_planner.sim import SensorSettings, hairpin_course, sensor_samples, smart_recording
 
 RIDER = PRESETS["paper"]
 
@@ -272,15 +272,12 @@ def test_speed_from_gps_alone(data_file: Callable[[str], Path], every: str) -> N
     so such a rider was always about to stop: St John's at 1 Hz read 32.1 km/h slow on
     average, and its replay's horizons failed from standstill. Against the device's
     speed, which the estimator does not see here."""
-    rec = read_recording(data_file("rides/edge810_vector_stjohns_2013.fit"))
+    ride = read_recording(data_file("rides/edge810_vector_stjohns_2013.fit"))
+    rec = smart_recording(ride, seed=1) if every == "smart recording" else ride
     assert rec.time_s is not None and rec.speed_mps is not None and rec.power_w is not None
-    keep = np.arange(len(rec))
-    if every == "smart recording":  # a record every 1-7 s
-        keep = np.cumsum(np.random.default_rng(1).integers(1, 8, size=len(rec)))
-        keep = keep[keep < len(rec)]
-    est = _estimator(fit_course(rec))
+    est = _estimator(fit_course(ride))
     error = []
-    for i in keep:
+    for i in range(len(rec)):
         stamp = float(rec.time_s[i])
         est.on_gps(GpsFix(stamp, float(rec.lat_deg[i]), float(rec.lon_deg[i]),
                           float(rec.ele_m[i])))
