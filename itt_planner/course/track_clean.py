@@ -220,7 +220,13 @@ def close_loop(track: Track, settings: CleanSettings = CleanSettings()) -> Track
         # that reaches the start from before it is the arrival. What follows it (circling
         # at the finish, the ride home) is not course, and a cut there would close the lap
         # with a turn-around only a few metres wide.
-        cand = np.flatnonzero((dist <= settings.closed_loop_gap_m) & before)[::-1]
+        near = dist <= settings.closed_loop_gap_m
+        # Sparse fixes may straddle the line: the last before it farther than the gap (up
+        # to 3 gaps), the next past it within the gap. The one before is the arrival.
+        straddle = np.zeros_like(near)
+        straddle[1:] = (before[1:] & ~before[:-1] & near[:-1]
+                        & (dist[1:] <= 3 * settings.closed_loop_gap_m))
+        cand = np.flatnonzero((near & before) | straddle)[::-1]
         if len(cand) and _arrives_like_start(x, y, int(tail[cand[0]]), ahead, settings):
             run = cand[: int(np.argmax(np.diff(cand) != -1)) + 1] if np.any(
                 np.diff(cand) != -1) else cand

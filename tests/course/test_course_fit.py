@@ -84,17 +84,20 @@ def test_sauerland_pauses_and_jumps_leave_no_spurious_geometry(
     assert not course.closed_loop
 
 
+@pytest.mark.parametrize("seed", [1, 3])
 def test_a_smart_recorded_loop_is_the_loop(real_course: Callable[[str], Course],
-                                          data_file: Callable[[str], Path]) -> None:
-    # St John's with one record every 1-7 s (smart recording): its last fix within 30 m
-    # of the start came 139 m of track before the end, outside the 90 m searched, and the
-    # two-lap loop became a point-to-point course with a corner at the seam.
+                                          data_file: Callable[[str], Path], seed: int) -> None:
+    # St John's with one record every 1-7 s (smart recording) became a point-to-point
+    # course with a corner at the seam. Seed 1: its last fix within 30 m of the start came
+    # 139 m of track before the end, outside the 90 m searched. Seed 3: the fixes around
+    # the line were 45.5 m before it and 4.5 m past it (none before it within 30 m).
     ride = real_course("rides/edge810_vector_stjohns_2013.fit")
     rec = read_recording(data_file("rides/edge810_vector_stjohns_2013.fit"))
-    smart = fit_course(smart_recording(rec, seed=1))
+    smart = fit_course(smart_recording(rec, seed=seed))
     assert smart.closed_loop and ride.closed_loop
     assert smart.length_m == pytest.approx(ride.length_m, rel=0.003)
-    assert len(smart.corners) == len(ride.corners)
+    # Seeds 1-6: 12-16 corners against the ride's 14 (the bends near the threshold).
+    assert abs(len(smart.corners) - len(ride.corners)) <= 2
 
 
 def _write(tmp_path: Path, name: str, text: str) -> Path:
