@@ -22,8 +22,7 @@ name in `StateEstimator.hooks`: the engine dispatches every sample through that 
 Adding a sensor is one hook and one line in it.
 
 Bad inputs (NaN or negative values, time going backwards, duplicate stamps, fixes far
-off the course) are dropped with a logged warning and counted in `counters`; nothing
-here raises on input data.
+off the course) are dropped, logged and counted in `counters`; nothing here raises.
 """
 
 from __future__ import annotations
@@ -61,8 +60,7 @@ class EstimatorSettings:
         odometry_drift: dead-reckoning error as a fraction of the distance travelled
             (wheel circumference error, the wheel's path is not the centre line).
         gate_sigma: a GPS `s` innovation beyond this many sigmas is an outlier ...
-        gate_floor_m: ... unless it is smaller than this (so a confident filter still
-            accepts ordinary GPS noise).
+        gate_floor_m: ... unless it is smaller than this (ordinary GPS noise always passes).
         off_course_m: a fix farther than this beyond the road edge is off the course.
         search_margin_m: the local search window is predicted `s` +/- (this + 4 sigma).
         lost_after: this many consecutive rejected fixes trigger a global re-acquisition.
@@ -316,7 +314,9 @@ class StateEstimator:
         self._mark_start(stamp)
         self._t = stamp
         self._x = np.array([match.s_m, self._x[1]])
-        self._p = np.diag([std * std, 4.0])
+        # Without a fresh wheel speed the speed is unknown until the next fixes tell.
+        v_std = 2.0 if stamp - self._speed_t <= self.settings.speed_stale_s else 8.0
+        self._p = np.diag([std * std, v_std ** 2])
         self._s_pub = match.s_m
         self._n = match.n_m
         self._gps_t = stamp
