@@ -1,6 +1,6 @@
-"""Read routes drawn on web maps into a `Recording`: KML and KMZ (Google Earth, Google My
-Maps, RideWithGPS) through fastkml, and GeoJSON (geojson.io, OpenRouteService, togeojson's
-conversions of GPX), which is plain JSON (RFC 7946).
+"""Read routes drawn on web maps (`track_files` makes them a `Recording`): KML and KMZ
+(Google Earth, Google My Maps, RideWithGPS) through fastkml, and GeoJSON (geojson.io,
+OpenRouteService, togeojson's conversions of GPX), which is plain JSON (RFC 7946).
 
 Only lines make a route: a KML Placemark's LineString (also inside a MultiGeometry) or its
 gx:Track / gx:MultiTrack (with their stamps); a GeoJSON LineString or MultiLineString, bare,
@@ -9,6 +9,8 @@ in a Feature, a FeatureCollection or a GeometryCollection, with togeojson's stam
 (points) and areas (polygons) are not read. Several lines are joined in document order, as
 the GPX reader joins tracks and segments. Coordinates are longitude, latitude and, when
 given, altitude in metres.
+
+Also the XML clean-up every XML track format needs (`xml_text`).
 """
 
 from __future__ import annotations
@@ -17,13 +19,13 @@ import io
 import json
 import zipfile
 from collections.abc import Iterator
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from itt_planner.course.track_files import Recording, file_sha256, track_format, xml_text
 from itt_planner.errors import CourseError
 
 #: One route point: longitude, latitude, altitude (NaN when absent), POSIX stamp (NaN).
@@ -31,11 +33,31 @@ _Row = tuple[float, float, float, float]
 _NAN = float("nan")
 
 
-def read_kml(path: Path, data: bytes) -> Recording:
+@dataclass(frozen=True, eq=False)
+class MapRoute:
+    """A route's points in file order; NaN where a file has no altitude or stamp.
+
+    Attributes:
+        time_s: POSIX seconds, or None when no point has a stamp.
+    """
+
+    lat_deg: np.ndarray
+    lon_deg: np.ndarray
+    ele_m: np.ndarray
+    time_s: np.ndarray | None
+
+
+def xml_text(data: bytes) -> bytes:
+    """XML with what comes before its declaration removed (a byte-order mark, Strava's
+    spaces): XML allows nothing there, and such exports are otherwise well formed."""
+    return data.removeprefix(b"\xef\xbb\xbf").lstrip()
+
+
+def read_kml(path: Path, data: bytes, *, kmz: bool) -> MapRoute:
     """The lines of a KML file, or of the KML inside a KMZ (`doc.kml`, else its first)."""
     from fastkml import KML  # noqa: PLC0415  (lazy: only KML needs it)
 
-    if track_format(path) == ".kmz":
+    if kmz:
         data = _kmz_document(path, data)
     # Not validated against the schema: exports carry vendors' extensions; bad coordinates
     # still raise (strict parsing).
@@ -44,10 +66,10 @@ def read_kml(path: Path, data: bytes) -> Recording:
     if not rows:
         raise CourseError(f"{path}: no route in the KML (a LineString or gx:Track in a "
                           "Placemark; points and polygons are not a route)")
-    return _recording(path, rows)
+    return _route(rows)
 
 
-def read_geojson(path: Path, data: bytes) -> Recording:
+def read_geojson(path: Path, data: bytes) -> MapRoute:
     """The lines of a GeoJSON document (module docstring)."""
     try:
         doc = json.loads(data)
@@ -57,15 +79,14 @@ def read_geojson(path: Path, data: bytes) -> Recording:
     if not rows:
         raise CourseError(f"{path}: no route in the GeoJSON (a LineString or MultiLineString; "
                           "points and polygons are not a route)")
-    return _recording(path, rows)
+    return _route(rows)
 
 
-def _recording(path: Path, rows: list[_Row]) -> Recording:
+def _route(rows: list[_Row]) -> MapRoute:
     arr = np.array(rows, dtype=float)
     stamps = arr[:, 3]
-    return Recording(path=path, sha256=file_sha256(path), lat_deg=arr[:, 1],
-                     lon_deg=arr[:, 0], ele_m=arr[:, 2],
-                     time_s=None if np.all(np.isnan(stamps)) else stamps)
+    return MapRoute(lat_deg=arr[:, 1], lon_deg=arr[:, 0], ele_m=arr[:, 2],
+                    time_s=None if np.all(np.isnan(stamps)) else stamps)
 
 
 def _kmz_document(path: Path, data: bytes) -> bytes:

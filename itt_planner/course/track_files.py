@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from itt_planner.course.map_files import MapRoute, read_geojson, read_kml, xml_text
 from itt_planner.errors import CourseError
 
 #: FIT stores positions in semicircles: 2^31 semicircles = 180 degrees.
@@ -91,12 +92,6 @@ def track_bytes(path: Path) -> bytes:
     return data
 
 
-def xml_text(data: bytes) -> bytes:
-    """XML with what comes before its declaration removed (a byte-order mark, Strava's
-    spaces): XML allows nothing there, and such exports are otherwise well formed."""
-    return data.removeprefix(b"\xef\xbb\xbf").lstrip()
-
-
 def read_recording(path: str | Path) -> Recording:
     """Read a GPX, TCX, FIT, CSV, KML, KMZ or GeoJSON file, or one of those gzipped
     (`ride.fit.gz`).
@@ -107,11 +102,8 @@ def read_recording(path: str | Path) -> Recording:
     """
     path = Path(path)
     suffix = track_format(path)
-    # map_files builds on this module's Recording: imported here, not at the top.
-    from itt_planner.course.map_files import read_geojson, read_kml  # noqa: PLC0415
-
     readers = {".gpx": _read_gpx, ".tcx": _read_tcx, ".fit": _read_fit, ".csv": _read_csv,
-               ".kml": read_kml, ".kmz": read_kml, ".geojson": read_geojson}
+               ".kml": _read_kml, ".kmz": _read_kml, ".geojson": _read_geojson}
     if not suffix:
         msg = (f"{path}: unknown track format {path.suffix.lower()!r}; expected one of "
                f"{', '.join(SUFFIXES)} (or the same gzipped, {GZIP_SUFFIX})")
@@ -136,6 +128,19 @@ def _arr(values: list[float | None]) -> np.ndarray:
 def _opt(values: list[float | None]) -> np.ndarray | None:
     arr = _arr(values)
     return None if np.all(np.isnan(arr)) else arr
+
+
+def _map_recording(path: Path, route: MapRoute) -> Recording:
+    return Recording(path=path, sha256=file_sha256(path), lat_deg=route.lat_deg,
+                     lon_deg=route.lon_deg, ele_m=route.ele_m, time_s=route.time_s)
+
+
+def _read_kml(path: Path, data: bytes) -> Recording:
+    return _map_recording(path, read_kml(path, data, kmz=track_format(path) == ".kmz"))
+
+
+def _read_geojson(path: Path, data: bytes) -> Recording:
+    return _map_recording(path, read_geojson(path, data))
 
 
 def _read_gpx(path: Path, data: bytes) -> Recording:
