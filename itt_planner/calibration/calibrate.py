@@ -100,7 +100,7 @@ class CalibrationResult:
             "mmp_w": {str(k): round(v, 1) for k, v in sorted(self.mmp_w.items())},
             "refusals": dict(self.refusals),
             "temperature_c": [r.temperature_c for r in self.rides],
-            # Smart recording's gaps filled at 1 s, per ride (ride_data.SPARSE_FILL_MAX_S).
+            # Smart recording's gaps filled at 1 s, per ride (ride_import.ridden_gaps).
             "filled_s": [r.filled_s for r in self.rides],
             "drivetrain_efficiency": self.options.drivetrain_efficiency,
             "setups": self._setups(),

@@ -22,8 +22,9 @@ import numpy as np
 import pymap3d
 from scipy.spatial import cKDTree
 
-from itt_planner.calibration.ride_data import MOVING_MPS, CalibrationError, RideSeries
+from itt_planner.calibration.ride_data import CalibrationError, RideSeries
 from itt_planner.course.geometry import Course
+from itt_planner.logs.ride_import import MOVING_MPS
 
 #: Two fixes this close horizontally are the same place (m).
 SAME_PLACE_M = 10.0

@@ -16,11 +16,16 @@ from pathlib import Path
 from typing import cast
 
 import numpy as np
-import pymap3d
 
 from itt_planner.course.track_files import Recording, track_bytes, track_format
 from itt_planner.errors import IttError
-from itt_planner.logs.ride_import import EARTH_RADIUS_M, PAUSE_MIN_S, POWER_SPIKE_W
+from itt_planner.logs.ride_import import (
+    MOVING_MPS,
+    PAUSE_MIN_S,
+    POWER_SPIKE_W,
+    fix_steps_m,
+    ridden_gaps,
+)
 
 #: Standard atmosphere (ICAO): sea-level pressure (Pa), lapse-rate exponent, scale.
 _P0_PA = 101_325.0
@@ -30,15 +35,8 @@ _BARO_EXP = 5.25588
 _R_DRY = 287.05
 #: Temperature used when neither the record nor the caller gives one (15 C, ISA).
 DEFAULT_TEMPERATURE_C = 15.0
-#: A ride is "moving" above this speed (m/s); below it GPS wanders and nothing is fitted.
-MOVING_MPS = 1.0
 #: Shortest moving time any estimator accepts (s).
 MIN_MOVING_S = 600.0
-#: Smart recording (many Garmin units' default) writes a record every 1-8 s while moving,
-#: more often where speed or heading change. A gap up to this long, across which the rider
-#: moved at `MOVING_MPS` or more, is filled at 1 s (linear) so that the estimators' windows
-#: and smoothing, written for 1 Hz, see 1 Hz; longer gaps and standing stay pauses.
-SPARSE_FILL_MAX_S = 15.0
 
 
 class CalibrationError(IttError):
@@ -75,7 +73,7 @@ class RideSeries:
         speed_source: "device" or "gps".
         temperature_c: the mean temperature used for the air density.
         filled_s: samples interpolated at 1 s between sparse records
-            (`SPARSE_FILL_MAX_S`); 0 for a 1 Hz record.
+            (`ridden_gaps`); 0 for a 1 Hz record.
     """
 
     source: str
@@ -116,11 +114,11 @@ def _fit_messages(path: Path, message: str) -> list[dict[str, object]]:
                 if frame.frame_type == fitdecode.FIT_FRAME_DATA and frame.name == message]
 
 
-def record_temperature_c(path: Path) -> float | None:
-    """Median `temperature` of a FIT file's records (the head unit's sensor), or None."""
-    values = [float(cast(float, r["temperature"])) for r in _fit_messages(path, "record")
-              if r.get("temperature") is not None]
-    return float(np.median(values)) if values else None
+def record_temperature_c(rec: Recording) -> float | None:
+    """Median temperature of a ride's records (the head unit's sensor: FIT `temperature`,
+    GPX `atemp`), or None when it has none."""
+    temps = rec.temperature_c
+    return None if temps is None or not np.isfinite(temps).any() else float(np.nanmedian(temps))
 
 
 def record_setup(path: Path) -> str | None:
@@ -132,9 +130,7 @@ def record_setup(path: Path) -> str | None:
 
 def gps_speed_mps(lat_deg: np.ndarray, lon_deg: np.ndarray, t_s: np.ndarray) -> np.ndarray:
     """Speed of each sample from the great-circle step to the previous fix (NaN at gaps)."""
-    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
-    step = EARTH_RADIUS_M * pymap3d.haversine.anglesep(lon[:-1], lat[:-1], lon[1:], lat[1:],
-                                                       deg=False)
+    step = fix_steps_m(lat_deg, lon_deg)
     dt = np.diff(t_s)
     with np.errstate(divide="ignore", invalid="ignore"):
         speed = np.where((dt > 0) & (dt <= PAUSE_MIN_S), step / dt, np.nan)
@@ -142,19 +138,13 @@ def gps_speed_mps(lat_deg: np.ndarray, lon_deg: np.ndarray, t_s: np.ndarray) -> 
 
 
 def fill_sparse_records(rec: Recording) -> tuple[Recording, int]:
-    """The record with smart recording's gaps filled at 1 s (`SPARSE_FILL_MAX_S`), and
-    the number of samples added. Stamps must be finite, sorted and distinct."""
+    """The record with the gaps the rider rode through (`ridden_gaps`: smart recording,
+    missed fixes) filled at 1 s, linearly, and the number of samples added: the
+    estimators' windows and smoothing are written for 1 Hz. Stamps must be finite, sorted
+    and distinct."""
     assert rec.time_s is not None
     t = rec.time_s
-    dt = np.diff(t)
-    lat, lon = np.radians(rec.lat_deg), np.radians(rec.lon_deg)
-    moved = EARTH_RADIUS_M * pymap3d.haversine.anglesep(lon[:-1], lat[:-1], lon[1:], lat[1:],
-                                                        deg=False)
-    if rec.speed_mps is not None:  # no fix at an end: the wheel speed says whether it moved
-        v = rec.speed_mps
-        moved = np.where(np.isfinite(moved), moved, np.fmin(v[:-1], v[1:]) * dt)
-    fill = np.flatnonzero((dt >= 2.0) & (dt <= SPARSE_FILL_MAX_S)
-                          & (np.nan_to_num(moved) >= MOVING_MPS * dt))
+    fill = np.flatnonzero(ridden_gaps(t, fix_steps_m(rec.lat_deg, rec.lon_deg), rec.speed_mps))
     if not len(fill):
         return rec, 0
     added = np.concatenate([np.arange(t[i] + 1.0, t[i + 1] - 0.5, 1.0) for i in fill])
@@ -170,7 +160,8 @@ def fill_sparse_records(rec: Recording) -> tuple[Recording, int]:
     filled = dataclasses.replace(
         rec, lat_deg=on_grid(rec.lat_deg), lon_deg=on_grid(rec.lon_deg),
         ele_m=on_grid(rec.ele_m), time_s=grid, speed_mps=maybe(rec.speed_mps),
-        power_w=maybe(rec.power_w), cadence_rpm=maybe(rec.cadence_rpm))
+        power_w=maybe(rec.power_w), cadence_rpm=maybe(rec.cadence_rpm),
+        temperature_c=maybe(rec.temperature_c))
     return filled, len(added)
 
 
@@ -178,7 +169,7 @@ def prepare_ride(rec: Recording, *, temperature_c: float | None = None,
                  min_moving_s: float = MIN_MOVING_S) -> RideSeries:
     """The ride's series for the estimators.
 
-    Temperature: `temperature_c` if given, else the FIT records' median, else 15 C.
+    Temperature: `temperature_c` if given, else the records' median, else 15 C.
 
     Raises:
         CalibrationError: no timestamps, no power, no altitude, no speed or position,
@@ -200,7 +191,8 @@ def prepare_ride(rec: Recording, *, temperature_c: float | None = None,
     rec, filled = fill_sparse_records(dataclasses.replace(
         rec, lat_deg=rec.lat_deg[order], lon_deg=rec.lon_deg[order], ele_m=ele_all[order],
         time_s=rec.time_s[order], speed_mps=_take(rec.speed_mps, order),
-        power_w=rec.power_w[order], cadence_rpm=_take(rec.cadence_rpm, order)))
+        power_w=rec.power_w[order], cadence_rpm=_take(rec.cadence_rpm, order),
+        temperature_c=_take(rec.temperature_c, order)))
     assert rec.time_s is not None
     assert rec.power_w is not None
     t_abs, lat, lon = rec.time_s, rec.lat_deg, rec.lon_deg
@@ -224,7 +216,7 @@ def prepare_ride(rec: Recording, *, temperature_c: float | None = None,
     step = np.where(same, 0.5 * (speed[1:] + speed[:-1]) * dt, 0.0)
     dist = np.concatenate([[0.0], np.cumsum(step)])
     if temperature_c is None:
-        temperature_c = record_temperature_c(rec.path)
+        temperature_c = record_temperature_c(rec)
     temp = DEFAULT_TEMPERATURE_C if temperature_c is None else float(temperature_c)
     series = RideSeries(
         source=where, t_s=t, v_mps=speed, power_w=power, ele_m=ele, dist_m=dist,

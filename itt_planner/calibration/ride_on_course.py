@@ -15,8 +15,9 @@ from typing import cast
 import numpy as np
 
 from itt_planner.calibration.matching import course_progress
-from itt_planner.calibration.ride_data import MOVING_MPS, CalibrationError, RideSeries, smooth
+from itt_planner.calibration.ride_data import CalibrationError, RideSeries, smooth
 from itt_planner.course.geometry import Course
+from itt_planner.logs.ride_import import MOVING_MPS
 from itt_planner.units import MPS_TO_KMH
 
 #: Window of the smoothed ride speed the models are compared with (samples, 1 Hz).

@@ -16,6 +16,8 @@ def _human_import(r: dict[str, Any]) -> str:
     lines += [f"  {topic:24s} {count:7d} messages" for topic, count in r["topics"].items()]
     longest = max((p["duration_s"] for p in r["pauses"]), default=0.0)
     lines.append(f"  {len(r['pauses'])} pauses (longest {longest:.0f} s), "
+                 f"{r['recording_gaps']} gaps ridden through (smart recording, missed "
+                 f"fixes; longest {r['recording_gap_longest_s']:.0f} s), "
                  f"{r['gps_jumps']} GPS jumps, {r['power_spikes']} power spikes, "
                  f"{r['records_without_position']} records without position "
                  "(all kept as recorded)")

@@ -14,6 +14,7 @@ the `<?xml` declaration, which strict XML parsers refuse.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import gzip
 import hashlib
@@ -52,6 +53,8 @@ class Recording:
     speed_mps: np.ndarray | None = None
     power_w: np.ndarray | None = None
     cadence_rpm: np.ndarray | None = None
+    #: The head unit's air temperature (C), for the air density.
+    temperature_c: np.ndarray | None = None
     device: str = ""
     meta: dict[str, str] = field(default_factory=dict)
 
@@ -143,6 +146,27 @@ def _read_geojson(path: Path, data: bytes) -> Recording:
     return _map_recording(path, read_geojson(path, data))
 
 
+#: GPX extension elements read, by local name in lower case: Garmin's TrackPointExtension
+#: (`gpxtpx:speed`, `cad`, `atemp`), its PowerExtension (`pwr:PowerInWatts`), Strava's and
+#: others' plain `<power>`.
+_GPX_EXTENSIONS = {"power": "power", "powerinwatts": "power", "watts": "power",
+                   "speed": "speed", "cad": "cadence", "cadence": "cadence",
+                   "atemp": "temperature", "temp": "temperature"}
+
+
+def _gpx_extensions(point: Any) -> dict[str, float]:
+    """The `_GPX_EXTENSIONS` values of a GPX point; a value that is not a number is left
+    out (missing), as a record without it."""
+    out: dict[str, float] = {}
+    for ext in point.extensions:
+        for el in ext.iter():
+            name = _GPX_EXTENSIONS.get(str(el.tag).rpartition("}")[2].lower())
+            if name and el.text:
+                with contextlib.suppress(ValueError):
+                    out[name] = float(el.text)
+    return out
+
+
 def _read_gpx(path: Path, data: bytes) -> Recording:
     import gpxpy  # noqa: PLC0415  (lazy: only GPX needs it)
 
@@ -152,18 +176,14 @@ def _read_gpx(path: Path, data: bytes) -> Recording:
     if not points:
         points = [p for rte in gpx.routes for p in rte.points]
     times = [p.time.timestamp() if p.time else None for p in points]
-    power: list[float | None] = []
-    for p in points:
-        watts = None
-        for ext in p.extensions:
-            for el in ext.iter():
-                if el.tag.lower().endswith("power") and el.text:
-                    watts = float(el.text)
-        power.append(watts)
+    ext = [_gpx_extensions(p) for p in points]
     return Recording(
         path=path, sha256=file_sha256(path),
         lat_deg=_arr([p.latitude for p in points]), lon_deg=_arr([p.longitude for p in points]),
-        ele_m=_arr([p.elevation for p in points]), time_s=_opt(times), power_w=_opt(power),
+        ele_m=_arr([p.elevation for p in points]), time_s=_opt(times),
+        speed_mps=_opt([e.get("speed") for e in ext]), power_w=_opt([e.get("power") for e in ext]),
+        cadence_rpm=_opt([e.get("cadence") for e in ext]),
+        temperature_c=_opt([e.get("temperature") for e in ext]),
         device=gpx.creator or "",
     )
 
@@ -230,7 +250,8 @@ def _read_fit(path: Path, data: bytes) -> Recording:
         lon_deg=_arr(col("position_long", scale=_SEMICIRCLE_DEG)),
         ele_m=_arr(col("enhanced_altitude", "altitude")), time_s=_opt(times),
         speed_mps=_opt(col("enhanced_speed", "speed")), power_w=_opt(col("power")),
-        cadence_rpm=_opt(col("cadence")), device=device,
+        cadence_rpm=_opt(col("cadence")), temperature_c=_opt(col("temperature")),
+        device=device,
     )
 
 

@@ -35,11 +35,18 @@ GPS_JUMP_SPEED_MPS = 30.0
 POWER_SPIKE_W = 1500.0
 #: Mean Earth radius (IUGG): great-circle distance = radius x angular separation.
 EARTH_RADIUS_M = 6_371_008.8
+#: Slower than this between two records is standing (walking pace is ~1.4 m/s).
+MOVING_MPS = 1.0
+#: A gap of 2 s up to this long, across which the rider moved on at `MOVING_MPS` or more, is
+#: the recorder's, not a stop: smart recording (many Garmin units' default) writes a record
+#: every 1-8 s while moving, and 1 Hz loggers miss fixes. Longer gaps are pauses whatever
+#: the distance (an auto-pause rolled through, a dropout in a tunnel).
+RIDDEN_GAP_MAX_S = 15.0
 
 
 @dataclass(frozen=True)
 class Pause:
-    """A gap in the recording: `start_s` after the first record, at POSIX `stamp_s`."""
+    """A gap between records: `start_s` after the first record, at POSIX `stamp_s`."""
 
     start_s: float
     stamp_s: float
@@ -58,6 +65,8 @@ class ImportSummary:
     topics: dict[str, int]
     duration_s: float
     pauses: list[Pause] = field(default_factory=list)
+    #: Gaps over `PAUSE_MIN_S` the rider rode through (`ridden_gaps`): not stops.
+    recording_gaps: list[Pause] = field(default_factory=list)
     gps_jumps: int = 0
     power_spikes: int = 0
     records_without_position: int = 0
@@ -70,6 +79,9 @@ class ImportSummary:
             "duration_s": self.duration_s,
             "pauses": [{"start_s": p.start_s, "stamp_s": p.stamp_s, "duration_s": p.duration_s}
                        for p in self.pauses],
+            "recording_gaps": len(self.recording_gaps),
+            "recording_gap_longest_s": max((p.duration_s for p in self.recording_gaps),
+                                           default=0.0),
             "gps_jumps": self.gps_jumps, "power_spikes": self.power_spikes,
             "records_without_position": self.records_without_position,
         }
@@ -113,13 +125,16 @@ def import_ride(source: str | Path, output: str | Path, *, rider: str = "",
             _write_record(writer, rec, int(i))
         counts = {t.name(namespace): writer.counts[t.name(namespace)] for t in INPUT_TOPICS}
 
-    has_pos = np.isfinite(rec.lat_deg[order]) & np.isfinite(rec.lon_deg[order])
+    lat, lon = rec.lat_deg[order], rec.lon_deg[order]
+    has_pos = np.isfinite(lat) & np.isfinite(lon)
     power = rec.power_w[order] if rec.power_w is not None else np.zeros(0)
+    ridden = ridden_gaps(times, fix_steps_m(lat, lon),
+                         None if rec.speed_mps is None else rec.speed_mps[order])
     return ImportSummary(
         output=Path(output), source=source, sha256=rec.sha256, device=rec.device,
         records=len(order), topics=counts, duration_s=float(times[-1] - times[0]),
-        pauses=find_pauses(times), gps_jumps=count_gps_jumps(
-            rec.lat_deg[order][has_pos], rec.lon_deg[order][has_pos], times[has_pos]),
+        pauses=find_pauses(times, among=~ridden), recording_gaps=find_pauses(times, among=ridden),
+        gps_jumps=count_gps_jumps(lat[has_pos], lon[has_pos], times[has_pos]),
         power_spikes=int(np.sum(power > POWER_SPIKE_W)),
         records_without_position=int(np.sum(~has_pos)),
     )
@@ -140,12 +155,35 @@ def _write_record(writer: RideLogWriter, rec: Recording, i: int) -> None:
                                          cadence_rpm=cadence))
 
 
-def find_pauses(times_s: np.ndarray, min_gap_s: float = PAUSE_MIN_S) -> list[Pause]:
-    """Gaps of more than `min_gap_s` between consecutive records."""
+def find_pauses(times_s: np.ndarray, min_gap_s: float = PAUSE_MIN_S, *,
+                among: np.ndarray | None = None) -> list[Pause]:
+    """Gaps of more than `min_gap_s` between consecutive records; with `among` (a mask
+    per gap), only the gaps it marks."""
     gaps = np.diff(times_s)
+    pick = (gaps > min_gap_s) & (True if among is None else among)
     return [Pause(start_s=float(times_s[i] - times_s[0]), stamp_s=float(times_s[i]),
                   duration_s=float(gaps[i]))
-            for i in np.flatnonzero(gaps > min_gap_s)]
+            for i in np.flatnonzero(pick)]
+
+
+def fix_steps_m(lat_deg: np.ndarray, lon_deg: np.ndarray) -> np.ndarray:
+    """Great-circle distance (m) from each fix to the next; NaN where either is missing."""
+    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
+    return np.asarray(EARTH_RADIUS_M * anglesep(lon[:-1], lat[:-1], lon[1:], lat[1:],
+                                                deg=False), float)
+
+
+def ridden_gaps(times_s: np.ndarray, steps_m: np.ndarray,
+                speed_mps: np.ndarray | None = None) -> np.ndarray:
+    """Per gap between consecutive records (sorted stamps), whether it is the recorder's:
+    2 s to `RIDDEN_GAP_MAX_S` long, with the rider `MOVING_MPS` or faster across it, by
+    the fixes' `steps_m`, or where a fix is missing, by the wheel speed at both ends."""
+    dt = np.diff(times_s)
+    moved = steps_m
+    if speed_mps is not None:
+        moved = np.where(np.isfinite(moved), moved, np.fmin(speed_mps[:-1], speed_mps[1:]) * dt)
+    return np.asarray((dt >= 2.0) & (dt <= RIDDEN_GAP_MAX_S)
+                      & (np.nan_to_num(moved) >= MOVING_MPS * dt))
 
 
 def count_gps_jumps(lat_deg: np.ndarray, lon_deg: np.ndarray, times_s: np.ndarray,
@@ -156,8 +194,7 @@ def count_gps_jumps(lat_deg: np.ndarray, lon_deg: np.ndarray, times_s: np.ndarra
     """
     if len(lat_deg) < 2:
         return 0
-    lat, lon = np.radians(lat_deg), np.radians(lon_deg)
-    dist = EARTH_RADIUS_M * anglesep(lon[:-1], lat[:-1], lon[1:], lat[1:], deg=False)
+    dist = fix_steps_m(lat_deg, lon_deg)
     dt = np.diff(times_s)
     with np.errstate(divide="ignore", invalid="ignore"):
         jumps = np.where(dt > 0, dist / np.where(dt > 0, dt, 1.0) > max_speed_mps, dist > 0)

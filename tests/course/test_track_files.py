@@ -51,6 +51,36 @@ def test_gpx_and_csv_with_header(tmp_path: Path) -> None:
     assert rec.lat_deg.tolist() == [45.0, 45.001] and rec.ele_m.tolist() == [10, 11]
 
 
+def test_gpx_extensions_power_speed_cadence_temperature(tmp_path: Path) -> None:
+    """The sensor values GPX exports carry in extensions: Garmin's TrackPointExtension v2
+    (speed, cadence, air temperature) and PowerExtension, Strava's plain <power>; a
+    value that is not a number is missing, not a broken file."""
+    garmin = ('<extensions><gpxtpx:TrackPointExtension><gpxtpx:atemp>{t}</gpxtpx:atemp>'
+              '<gpxtpx:cad>{c}</gpxtpx:cad><gpxtpx:speed>{v}</gpxtpx:speed>'
+              '</gpxtpx:TrackPointExtension><pwr:PowerInWatts>{p}</pwr:PowerInWatts>'
+              '</extensions>')
+    points = [garmin.format(t=21, c=90, v=11.5, p=310), garmin.format(t=23, c=92, v=12.0,
+                                                                      p="n/a"),
+              "<extensions><power>250</power></extensions>", ""]
+    gpx = tmp_path / "sensors.gpx"
+    gpx.write_text(
+        '<?xml version="1.0"?><gpx version="1.1" creator="test" '
+        'xmlns="http://www.topografix.com/GPX/1/1" '
+        'xmlns:gpxtpx="http://www.garmin.com/xmlschemas/TrackPointExtension/v2" '
+        'xmlns:pwr="http://www.garmin.com/xmlschemas/PowerExtension/v1"><trk><trkseg>'
+        + "".join(f'<trkpt lat="45.{i:04d}" lon="11.0"><ele>100</ele>'
+                  f"<time>2026-01-01T00:00:{i:02d}Z</time>{ext}</trkpt>"
+                  for i, ext in enumerate(points))
+        + "</trkseg></trk></gpx>")
+    rec = read_recording(gpx)
+    assert rec.power_w is not None and rec.speed_mps is not None
+    assert rec.cadence_rpm is not None and rec.temperature_c is not None
+    np.testing.assert_array_equal(rec.power_w, [310, np.nan, 250, np.nan])
+    np.testing.assert_array_equal(rec.speed_mps, [11.5, 12.0, np.nan, np.nan])
+    np.testing.assert_array_equal(rec.cadence_rpm, [90, 92, np.nan, np.nan])
+    assert record_temperature_c(rec) == 22.0
+
+
 @pytest.mark.parametrize(("name", "text", "problem"), [
     ("missing.gpx", None, "no such file"),
     ("empty.tcx", "", "empty"),
@@ -112,11 +142,11 @@ def test_a_gzipped_fit_is_the_fit(tmp_path: Path, data_file: Callable[[str], Pat
     packed.write_bytes(gzip.compress(src.read_bytes()))
     assert track_format(packed) == ".fit" and track_format(tmp_path / "a.b.gz") == ""
     a, b = read_recording(src), read_recording(packed)
-    for name in ("lat_deg", "lon_deg", "ele_m", "time_s", "speed_mps", "power_w"):
+    for name in ("lat_deg", "lon_deg", "ele_m", "time_s", "speed_mps", "power_w",
+                 "temperature_c"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     assert a.device == b.device and b.sha256 == file_sha256(packed) != a.sha256
-    # The extras calibration reads beside the records (the head unit's temperature).
-    assert record_temperature_c(packed) == record_temperature_c(src) is not None
+    assert record_temperature_c(b) is not None  # the head unit's, for the air density
 
 
 def test_a_gzipped_route_loads_as_a_course(tmp_path: Path) -> None:

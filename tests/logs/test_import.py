@@ -19,7 +19,13 @@ from itt_planner.cli import app
 from itt_planner.course.track_files import file_sha256
 from itt_planner.errors import RideLogError
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.logs.ride_import import ImportSummary, count_gps_jumps, find_pauses, import_ride
+from itt_planner.logs.ride_import import (
+    ImportSummary,
+    count_gps_jumps,
+    find_pauses,
+    import_ride,
+    ridden_gaps,
+)
 from itt_planner.logs.ridelog import RideLogReader
 
 RIDES = ["edge1000_ardennes_2019.fit", "edge810_vector_stjohns_2013.fit",
@@ -178,3 +184,26 @@ def test_ride_without_times_is_refused(data_file: Callable[[str], Path], tmp_pat
     course = data_file("courses/tokyo2020_olympic_itt_lap.csv")
     with pytest.raises(RideLogError, match=r"tokyo2020_olympic_itt_lap\.csv: .*no timestamps"):
         import_ride(course, tmp_path / "x.mcap")
+
+
+def test_gaps_ridden_through_are_not_pauses(tmp_path: Path) -> None:
+    """Smart recording (a record every 1-8 s while moving) is not a ride of pauses: a gap
+    the rider rode through (<= 15 s, >= 1 m/s between the fixes) is a recording gap; a
+    gap standing, or a long one, is a pause."""
+    east_m = [0, 10, 20, 30, 90, 90.5, 91, 95, 100, 110]  # 6 s ridden, 6 s and 30 s standing
+    stamps = [0, 1, 2, 3, 9, 15, 45, 46, 47, 48]
+    gpx = tmp_path / "sparse.gpx"
+    gpx.write_text(
+        '<?xml version="1.0"?><gpx version="1.1" creator="t"><trk><trkseg>'
+        + "".join(f'<trkpt lat="45.0" lon="{11 + x / 78_850:.8f}"><ele>100</ele>'
+                  f"<time>2026-01-01T00:00:{t:02d}Z</time></trkpt>"
+                  for x, t in zip(east_m, stamps, strict=True))
+        + "</trkseg></trk></gpx>")
+    s = import_ride(gpx, tmp_path / "sparse.mcap")
+    assert [(p.start_s, p.duration_s) for p in s.recording_gaps] == [(3.0, 6.0)]
+    assert [(p.start_s, p.duration_s) for p in s.pauses] == [(9.0, 6.0), (15.0, 30.0)]
+    assert (s.as_dict()["recording_gaps"], s.as_dict()["recording_gap_longest_s"]) == (1, 6.0)
+    # Without a fix at an end, the wheel speed at both ends says whether the rider moved.
+    t = np.array([0.0, 5, 10, 30])
+    steps = np.array([np.nan, np.nan, 400.0])
+    assert ridden_gaps(t, steps, np.array([8.0, 9, 0.5, 9])).tolist() == [True, False, False]
