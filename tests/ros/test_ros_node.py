@@ -371,8 +371,8 @@ def _inputs_lost(node_log: Path, ride_log: Path) -> dict[str, list[float]]:
 def test_play_node_record_pipeline_agrees_with_the_embedded_replay(
         tmp_path: Path, tmp_path_factory: pytest.TempPathFactory,
         ros_env: dict[str, str]) -> None:
-    # The first 100 s of the ride (~1.4 km, through two corners): played at rate 2 in 50 s.
-    ride = cached_ride(tmp_path_factory.getbasetemp(), duration_s=100.0)
+    # The first 85 s of the ride (~1.2 km, through two corners): played at rate 2 in 43 s.
+    ride = cached_ride(tmp_path_factory.getbasetemp(), duration_s=85.0)
     truth = Plan.load(ride.plan)
     ridden_m = float(np.interp(ride.duration_s, truth.t_s, truth.s_m))
     env = ros_env
