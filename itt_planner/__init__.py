@@ -18,35 +18,9 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from itt_planner.course.geometry import Corner, Course, GeoOrigin
-from itt_planner.errors import CourseError, IttError, RideLogError, RiderError, SolveError
-from itt_planner.live.advice import Advice, Cue, Diagnostic, Level
-from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
-from itt_planner.model.conditions import Conditions
-from itt_planner.model.rider import PRESETS, Rider, load_rider
-from itt_planner.model.state import RiderState
-from itt_planner.ocp.plan import Plan
+import lazy_loader
 
-__all__ = [
-    "PRESETS",
-    "Advice",
-    "Conditions",
-    "Corner",
-    "Course",
-    "CourseError",
-    "Cue",
-    "Diagnostic",
-    "GeoOrigin",
-    "GpsFix",
-    "IttError",
-    "Level",
-    "Plan",
-    "PowerReading",
-    "RideLogError",
-    "Rider",
-    "RiderError",
-    "RiderState",
-    "SolveError",
-    "WheelSpeed",
-    "load_rider",
-]
+# Each public name loads on first use from the module `__init__.pyi` imports it from
+# (lazy_loader reads the stub's imports; type checkers read the stub as the package): a
+# process that needs one module no longer imports every stage of the package with it.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import ast
 import functools
+import importlib
 import tomllib
+import types
 from pathlib import Path
 
 import pytest
@@ -30,16 +32,43 @@ def _modules() -> dict[str, Path]:
     return {_module_name(p): p for p in sorted(PKG.rglob("*.py"))}
 
 
+def _source(path: Path) -> Path:
+    """The file that says what a module imports: a lazy package's stub (`__init__.pyi`,
+    whose imports lazy_loader makes on first use), else the module itself."""
+    stub = path.with_suffix(".pyi")
+    return stub if path.name == "__init__.py" and stub.is_file() else path
+
+
+def _absolute(path: Path, node: ast.ImportFrom) -> str:
+    """The module a `from` import in `path` names (a relative one resolved)."""
+    if node.level == 0:
+        return str(node.module)
+    name = _module_name(path)
+    package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+    base = package[:len(package) - (node.level - 1)]
+    return ".".join([*base, *([node.module] if node.module else [])])
+
+
+def _stub_origins(package: Path) -> dict[str, str]:
+    """Public name -> the module a lazy package's stub imports it from."""
+    return {alias.name: _absolute(package, node)
+            for node in ast.parse(_source(package).read_text()).body
+            if isinstance(node, ast.ImportFrom) for alias in node.names}
+
+
 @functools.cache
 def _imports(path: Path) -> set[str]:
-    """Every module named by an import anywhere in the file (function-level ones too)."""
+    """Every module named by an import anywhere in the file (function-level ones too); a
+    lazy package's are its stub's, relative to the package."""
+    source = _source(path)
     names: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text())):
+    for node in ast.walk(ast.parse(source.read_text())):
         if isinstance(node, ast.Import):
             names.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
-            names.add(node.module)
-            names.update(f"{node.module}.{alias.name}" for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and (node.module or node.level):
+            module = _absolute(path, node)
+            names.add(module)
+            names.update(f"{module}.{alias.name}" for alias in node.names)
     return names
 
 
@@ -120,13 +149,23 @@ PACKAGES = sorted(m for m, p in MODULES.items() if p.name == "__init__.py")
 
 @pytest.mark.parametrize("package", PACKAGES)
 def test_package_exports_its_public_names(package: str) -> None:
-    """Each (sub)package's `__init__` lists its public names in `__all__`, once each, and
-    every one of them is bound there (a name that moved away fails here, not at import)."""
-    bound, exported = _bound_and_exported(ast.parse(MODULES[package].read_text()))
+    """Each (sub)package's `__init__` (its stub, when lazy) lists its public names in
+    `__all__`, once each, and every one of them is bound there; a lazy package binds
+    exactly those (lazy_loader exports every name its stub imports), and each one loads
+    as the object its stub names, not a same-named module (a name that moved away fails
+    here, not at first use)."""
+    bound, exported = _bound_and_exported(ast.parse(_source(MODULES[package]).read_text()))
     assert exported, f"{package}: no __all__"
     assert len(set(exported)) == len(exported), f"{package}: __all__ repeats a name"
     missing = sorted(set(exported) - bound)
     assert not missing, f"{package}: __all__ names what it does not bind: {missing}"
+    if _source(MODULES[package]) != MODULES[package]:
+        module = importlib.import_module(package)
+        assert sorted(module.__all__) == sorted(exported), package
+        for name, origin in _stub_origins(MODULES[package]).items():
+            importlib.import_module(origin)  # as another module would, before the name
+            value = getattr(module, name)
+            assert not isinstance(value, types.ModuleType), f"{package}.{name} is a module"
 
 
 def _frozen_dataclasses(path: Path) -> set[str]:

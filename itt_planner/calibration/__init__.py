@@ -5,20 +5,9 @@ replayed through the models and the plan (`validate`). Estimator notes (equation
 assumptions, refusals) are in this package's README.md.
 """
 
-from itt_planner.calibration.aero import AeroFit, AeroSettings, fit_aero
-from itt_planner.calibration.calibrate import (
-    CalibrationOptions,
-    CalibrationResult,
-    calibrate,
-    rider_yaml,
-    write_rider,
-)
-from itt_planner.calibration.cornering import CorneringFit, fit_cornering
-from itt_planner.calibration.power_curve import CpFit, fit_cp, mmp_curve
-from itt_planner.calibration.ride_data import CalibrationError, RideSeries, prepare_ride
+import lazy_loader
 
-__all__ = [
-    "AeroFit", "AeroSettings", "CalibrationError", "CalibrationOptions", "CalibrationResult",
-    "CorneringFit", "CpFit", "RideSeries", "calibrate", "fit_aero", "fit_cornering", "fit_cp",
-    "mmp_curve", "prepare_ride", "rider_yaml", "write_rider",
-]
+# Each public name loads on first use from the module `__init__.pyi` imports it from
+# (lazy_loader reads the stub's imports; type checkers read the stub as the package): a
+# process that needs one module no longer imports every stage of the package with it.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

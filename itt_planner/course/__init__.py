@@ -7,8 +7,9 @@ path by file type; `builder` makes courses from segments; `geometry` is the `Cou
 `racing_line` is the shortest line within the road and the course along it.
 """
 
-from itt_planner.course.geometry import Corner, Course, GeoOrigin, detect_corners
-from itt_planner.course.loader import DEMO_COURSES, demo_path, gps_course_options, load_course
+import lazy_loader
 
-__all__ = ["DEMO_COURSES", "Corner", "Course", "GeoOrigin", "demo_path", "detect_corners",
-           "gps_course_options", "load_course"]
+# Each public name loads on first use from the module `__init__.pyi` imports it from
+# (lazy_loader reads the stub's imports; type checkers read the stub as the package): a
+# process that needs one module no longer imports every stage of the package with it.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

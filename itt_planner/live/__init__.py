@@ -7,12 +7,9 @@ of advice a rider can follow (`advice_shaping`) and the engine's health (`health
 
 Nothing here imports ride logs, ROS or Rerun."""
 
-from itt_planner.live.advice import Advice, Cue, Diagnostic, Level
-from itt_planner.live.engine import EngineSettings, PacingEngine
-from itt_planner.live.estimate import EstimatorSettings, StateEstimator
-from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
-from itt_planner.live.wprime_balance import WPrimeBalance
+import lazy_loader
 
-__all__ = ["Advice", "Cue", "Diagnostic", "EngineSettings", "EstimatorSettings", "GpsFix",
-           "Level", "PacingEngine", "PowerReading", "Sample", "StateEstimator", "WPrimeBalance",
-           "WheelSpeed"]
+# Each public name loads on first use from the module `__init__.pyi` imports it from
+# (lazy_loader reads the stub's imports; type checkers read the stub as the package): a
+# process that needs one module no longer imports every stage of the package with it.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

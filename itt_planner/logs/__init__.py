@@ -2,9 +2,9 @@
 reading, `ridelog_writer`: writing) and the import of ride files (FIT/GPX/TCX/CSV) into
 them (`ride_import`)."""
 
-from itt_planner.logs.ride_import import ImportSummary, import_ride
-from itt_planner.logs.ridelog import RideLogReader, read_ride_log
-from itt_planner.logs.ridelog_writer import RideLogWriter, RideMetadata
+import lazy_loader
 
-__all__ = ["ImportSummary", "RideLogReader", "RideLogWriter", "RideMetadata", "import_ride",
-           "read_ride_log"]
+# Each public name loads on first use from the module `__init__.pyi` imports it from
+# (lazy_loader reads the stub's imports; type checkers read the stub as the package): a
+# process that needs one module no longer imports every stage of the package with it.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

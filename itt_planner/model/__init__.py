@@ -4,13 +4,9 @@ spatial dynamics of model.md E1-E9 (`dynamics`, 3D, 1D and steady-lean 3D), the 
 parameter vector and road data they take (`params`) and the steady-state speeds of the
 power balance (`steady`)."""
 
-from itt_planner.model.conditions import Conditions
-from itt_planner.model.dynamics import SpatialModel, build_model
-from itt_planner.model.params import ModelParams
-from itt_planner.model.rider import PRESETS, Rider, load_rider
-from itt_planner.model.state import RiderState
-from itt_planner.model.steady import speed_bound_mps, steady_speed_mps
-from itt_planner.model.wprime import WPrimeModel
+import lazy_loader
 
-__all__ = ["PRESETS", "Conditions", "ModelParams", "Rider", "RiderState", "SpatialModel",
-           "WPrimeModel", "build_model", "load_rider", "speed_bound_mps", "steady_speed_mps"]
+# Each public name loads on first use from the module `__init__.pyi` imports it from
+# (lazy_loader reads the stub's imports; type checkers read the stub as the package): a
+# process that needs one module no longer imports every stage of the package with it.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -8,15 +8,9 @@ its cut to a horizon (`plan`, `horizon_cut`), its independent verification (`ver
 the plan cache (`cache`), the analysis of plans on a course (`analysis`) and the 1D plan
 on the shortest line within the road (`line_plan`)."""
 
-from itt_planner.ocp.cache import load_or_solve
-from itt_planner.ocp.course_problem import solve_plan
-from itt_planner.ocp.course_settings import OcpSettings, Start
-from itt_planner.ocp.horizon import HorizonPlanner
-from itt_planner.ocp.horizon_settings import HorizonSettings, HorizonSolution
-from itt_planner.ocp.plan import Plan
-from itt_planner.ocp.solver import NlpSolver, PlanStatus, SolveResult
-from itt_planner.ocp.verify import Verification, verify_plan
+import lazy_loader
 
-__all__ = ["HorizonPlanner", "HorizonSettings", "HorizonSolution", "NlpSolver", "OcpSettings",
-           "Plan", "PlanStatus", "SolveResult", "Start", "Verification", "load_or_solve",
-           "solve_plan", "verify_plan"]
+# Each public name loads on first use from the module `__init__.pyi` imports it from
+# (lazy_loader reads the stub's imports; type checkers read the stub as the package): a
+# process that needs one module no longer imports every stage of the package with it.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

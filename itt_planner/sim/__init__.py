@@ -12,15 +12,9 @@ engine's advice on the 3D model, and the demo ride logs made from it.
     demo_bags   a simulated ride written as an MCAP ride log
 """
 
-from itt_planner.sim.behaviour import RiderBehaviour, planning_conditions
-from itt_planner.sim.compare import compare_policies
-from itt_planner.sim.demo_bags import record_simulated_ride
-from itt_planner.sim.hairpin import HAIRPIN_COURSE, hairpin_course
-from itt_planner.sim.loop import SimResult, simulate_ride
-from itt_planner.sim.scenarios import Policy, Scenario, ScenarioSettings
-from itt_planner.sim.sensors import Sensors, SensorSettings, sensor_samples, smart_recording
+import lazy_loader
 
-__all__ = ["HAIRPIN_COURSE", "Policy", "RiderBehaviour", "Scenario", "ScenarioSettings",
-           "SensorSettings", "Sensors", "SimResult", "compare_policies", "hairpin_course",
-           "planning_conditions", "record_simulated_ride", "sensor_samples", "simulate_ride",
-           "smart_recording"]
+# Each public name loads on first use from the module `__init__.pyi` imports it from
+# (lazy_loader reads the stub's imports; type checkers read the stub as the package): a
+# process that needs one module no longer imports every stage of the package with it.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

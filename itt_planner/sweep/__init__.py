@@ -17,19 +17,9 @@ Ray is imported only inside `cluster` and the workers, so the spec, cases and st
 work without it.
 """
 
-from itt_planner.sweep.calibrate_many import RiderRides, calibrate_many, calibrate_rider
-from itt_planner.sweep.cases import Case, expand, load_inputs
-from itt_planner.sweep.cluster import RayClusterError, RaySession, ray_session
-from itt_planner.sweep.report import write_sweep_report
-from itt_planner.sweep.runner import SweepSummary, run_sweep
-from itt_planner.sweep.solve import CONVERGED, FAILED, NOT_CONVERGED, CaseSolver, solve_case
-from itt_planner.sweep.spec import Equipment, Grid, SweepSpec, SweepSpecError, load_spec, parse_spec
-from itt_planner.sweep.store import SCHEMA, ResultStore, ResultStoreError
+import lazy_loader
 
-__all__ = [
-    "CONVERGED", "FAILED", "NOT_CONVERGED", "SCHEMA", "Case", "CaseSolver", "Equipment", "Grid",
-    "RayClusterError", "RaySession", "ResultStore", "ResultStoreError", "RiderRides",
-    "SweepSpec", "SweepSpecError", "SweepSummary", "calibrate_many", "calibrate_rider",
-    "expand", "load_inputs", "load_spec", "parse_spec", "ray_session", "run_sweep",
-    "solve_case", "write_sweep_report",
-]
+# Each public name loads on first use from the module `__init__.pyi` imports it from
+# (lazy_loader reads the stub's imports; type checkers read the stub as the package): a
+# process that needs one module no longer imports every stage of the package with it.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -10,10 +10,9 @@
     report_sections  extra sections of the static report (calibrated rider, validation)
 """
 
-from itt_planner.view.report import ReportSettings, write_report
-from itt_planner.view.rerun_blueprint import default_blueprint
-from itt_planner.view.rerun_log import RideRecorder
-from itt_planner.view.rerun_sink import RerunSink, open_recording
+import lazy_loader
 
-__all__ = ["ReportSettings", "RerunSink", "RideRecorder", "default_blueprint",
-           "open_recording", "write_report"]
+# Each public name loads on first use from the module `__init__.pyi` imports it from
+# (lazy_loader reads the stub's imports; type checkers read the stub as the package): a
+# process that needs one module no longer imports every stage of the package with it.
+__getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)

@@ -209,3 +209,12 @@ def test_wheel_contains_the_msg_files(tmp_path: Path) -> None:
                          capture_output=True, cwd=tmp_path,
                          env={**os.environ, "PYTHONPATH": str(site)}, timeout=120).stdout
     assert out.strip() == str(sorted(f"itt_msgs/msg/{p.stem}" for p in MSG_DIR.glob("*.msg")))
+    # The lazy packages' stubs ship too: without them their public names do not load.
+    stubs = sorted(p.relative_to(ROOT).as_posix() for p in (ROOT / "itt_planner").rglob("*.pyi"))
+    assert stubs and set(stubs) <= set(zipfile.ZipFile(wheel).namelist())
+    probe = ("import itt_planner, sys; assert itt_planner.__file__.startswith(sys.argv[1]); "
+             "from itt_planner.calibration import calibrate; print(calibrate.__name__)")
+    out = subprocess.run([sys.executable, "-c", probe, str(site)], check=True, text=True,
+                         capture_output=True, cwd=tmp_path,
+                         env={**os.environ, "PYTHONPATH": str(site)}, timeout=120).stdout
+    assert out.strip() == "calibrate"

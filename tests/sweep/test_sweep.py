@@ -2,10 +2,10 @@
 
 The default suite runs one small sweep on a private local Ray instance (2 riders x 2
 winds x dry/wet in 1D, one rider's 2 winds x dry/wet in 3D, on a 1.2 km built course,
-plus one case on a road narrower than the bike: listed `cases`), interrupted after a few cases and resumed: the table must hold every case once,
-the finish times must be those of direct `solve_plan` calls (a subset covering every axis
-value), the impossible case must be a failed row with its reason, and every socket of the
-Ray instance must be on loopback.
+plus one case on a road narrower than the bike: listed `cases`), interrupted after a few
+cases and resumed: the table must hold every case once, the finish times must be those of
+direct `solve_plan` calls (a subset covering every axis value), the impossible case must
+be a failed row with its reason, and every socket of the Ray instance must be on loopback.
 The two-node test (`slow`) starts a head and a second node with `ray start` on 127.0.0.1
 and runs the CLI through `--address`.
 """
