@@ -8,9 +8,12 @@ in a Feature, a FeatureCollection or a GeometryCollection, with togeojson's stam
 (`properties.coordinateProperties.times`, or the older `properties.coordTimes`). Markers
 (points) and areas (polygons) are not read. Several lines are joined in document order, as
 the GPX reader joins tracks and segments. Coordinates are longitude, latitude and, when
-given, altitude in metres.
+given, altitude in metres. A gx:Track's `ExtendedData` arrays (`gx:SimpleArrayData`, as
+Google Earth and GPS Visualizer write a ride's sensors) give power, speed, cadence and
+temperature by `SENSOR_NAMES`.
 
-Also the XML clean-up every XML track format needs (`xml_text`).
+Also what every XML track format needs: the clean-up before the declaration (`xml_text`)
+and the sensor names (`SENSOR_NAMES`, the GPX reader's extensions too).
 """
 
 from __future__ import annotations
@@ -28,9 +31,19 @@ import numpy as np
 
 from itt_planner.errors import CourseError
 
-#: One route point: longitude, latitude, altitude (NaN when absent), POSIX stamp (NaN).
-_Row = tuple[float, float, float, float]
+#: Sensor values beside the points, by their name in the file in lower case: GPX extensions
+#: (Garmin's TrackPointExtension `speed`, `cad`, `atemp`, its PowerExtension
+#: `PowerInWatts`, a plain `<power>`) and gx:Track arrays (`power`, `cadence`, ...).
+SENSOR_NAMES = {"power": "power", "powerinwatts": "power", "watts": "power",
+                "speed": "speed", "cad": "cadence", "cadence": "cadence",
+                "atemp": "temperature", "temp": "temperature", "temperature": "temperature"}
+#: The sensors a route point carries after its stamp, in this order.
+SENSORS = ("power", "speed", "cadence", "temperature")
+#: One route point: longitude, latitude, altitude (NaN when absent), POSIX stamp (NaN),
+#: then `SENSORS` (NaN when absent).
+_Row = tuple[float, ...]
 _NAN = float("nan")
+_NO_SENSORS = (_NAN,) * len(SENSORS)
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,12 +52,24 @@ class MapRoute:
 
     Attributes:
         time_s: POSIX seconds, or None when no point has a stamp.
+        sensors: each of `SENSORS` that some point has (NaN at the others), in SI units
+            but cadence (rpm) and temperature (C).
     """
 
     lat_deg: np.ndarray
     lon_deg: np.ndarray
     ele_m: np.ndarray
     time_s: np.ndarray | None
+    sensors: dict[str, np.ndarray]
+
+
+def sensor_value(text: str | None) -> float:
+    """A sensor reading as written in a file; NaN when missing or not a number (one bad
+    value is a missing reading, not a broken file)."""
+    try:
+        return float(text) if text else _NAN
+    except ValueError:
+        return _NAN
 
 
 def xml_text(data: bytes) -> bytes:
@@ -85,8 +110,10 @@ def read_geojson(path: Path, data: bytes) -> MapRoute:
 def _route(rows: list[_Row]) -> MapRoute:
     arr = np.array(rows, dtype=float)
     stamps = arr[:, 3]
+    sensors = {name: arr[:, 4 + k] for k, name in enumerate(SENSORS)
+               if np.isfinite(arr[:, 4 + k]).any()}
     return MapRoute(lat_deg=arr[:, 1], lon_deg=arr[:, 0], ele_m=arr[:, 2],
-                    time_s=None if np.all(np.isnan(stamps)) else stamps)
+                    time_s=None if np.all(np.isnan(stamps)) else stamps, sensors=sensors)
 
 
 def _kmz_document(path: Path, data: bytes) -> bytes:
@@ -122,13 +149,30 @@ def _kml_rows(placemark: Any) -> Iterator[_Row]:
             shapes[:0] = list(shape.tracks if isinstance(shape, gx.MultiTrack)
                               else shape.kml_geometries)
         elif isinstance(shape, gx.Track):
-            for item in shape.track_items or ():
+            items = list(shape.track_items or ())
+            sensors = _track_sensors(shape, len(items))
+            for k, item in enumerate(items):
                 # A <when> may be a bare date: no stamp for the point then.
                 when = item.when.dt if item.when else None
                 stamp = when.timestamp() if isinstance(when, datetime) else _NAN
-                yield *_position(next(iter(item.coord.coords))), stamp
+                yield (*_position(next(iter(item.coord.coords))), stamp,
+                       *(values[k] for values in sensors))
         elif isinstance(shape, geometry.LineString) and shape.kml_coordinates:
-            yield from ((*_position(xyz), _NAN) for xyz in shape.kml_coordinates.coords)
+            yield from ((*_position(xyz), _NAN, *_NO_SENSORS)
+                        for xyz in shape.kml_coordinates.coords)
+
+
+def _track_sensors(track: Any, n: int) -> list[list[float]]:
+    """A gx:Track's `SENSORS` arrays from its ExtendedData, each `n` long (NaN where an
+    array is missing, or is not one value per point)."""
+    arrays = {name: [_NAN] * n for name in SENSORS}
+    extended = getattr(track, "extended_data", None)
+    for schema_data in getattr(extended, "elements", None) or ():
+        for array in getattr(schema_data, "array_data", None) or ():
+            name = SENSOR_NAMES.get(str(array.name or "").lower())
+            if name and len(array.data or ()) == n:
+                arrays[name] = [sensor_value(v) for v in array.data]
+    return [arrays[name] for name in SENSORS]
 
 
 def _position(xyz: tuple[float, ...]) -> tuple[float, float, float]:
@@ -162,7 +206,7 @@ def _geojson_rows(path: Path, obj: Any, props: dict[str, Any]) -> Iterator[_Row]
                         and all(isinstance(c, int | float) for c in xyz)):
                     raise CourseError(f"{path}: a {kind} position is not [longitude, "
                                       f"latitude(, altitude)] numbers: {xyz!r}")
-                yield *_position(tuple(xyz)), stamp
+                yield *_position(tuple(xyz)), stamp, *_NO_SENSORS
     elif not isinstance(kind, str):
         raise CourseError(f"{path}: a GeoJSON object without a 'type': {str(obj)[:60]!r}")
 

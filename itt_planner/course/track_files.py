@@ -14,7 +14,6 @@ the `<?xml` declaration, which strict XML parsers refuse.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import gzip
 import hashlib
@@ -26,7 +25,14 @@ from typing import Any
 
 import numpy as np
 
-from itt_planner.course.map_files import MapRoute, read_geojson, read_kml, xml_text
+from itt_planner.course.map_files import (
+    SENSOR_NAMES,
+    MapRoute,
+    read_geojson,
+    read_kml,
+    sensor_value,
+    xml_text,
+)
 from itt_planner.errors import CourseError
 
 #: FIT stores positions in semicircles: 2^31 semicircles = 180 degrees.
@@ -134,8 +140,12 @@ def _opt(values: list[float | None]) -> np.ndarray | None:
 
 
 def _map_recording(path: Path, route: MapRoute) -> Recording:
+    sensors = route.sensors
     return Recording(path=path, sha256=file_sha256(path), lat_deg=route.lat_deg,
-                     lon_deg=route.lon_deg, ele_m=route.ele_m, time_s=route.time_s)
+                     lon_deg=route.lon_deg, ele_m=route.ele_m, time_s=route.time_s,
+                     power_w=sensors.get("power"), speed_mps=sensors.get("speed"),
+                     cadence_rpm=sensors.get("cadence"),
+                     temperature_c=sensors.get("temperature"))
 
 
 def _read_kml(path: Path, data: bytes) -> Recording:
@@ -146,24 +156,14 @@ def _read_geojson(path: Path, data: bytes) -> Recording:
     return _map_recording(path, read_geojson(path, data))
 
 
-#: GPX extension elements read, by local name in lower case: Garmin's TrackPointExtension
-#: (`gpxtpx:speed`, `cad`, `atemp`), its PowerExtension (`pwr:PowerInWatts`), Strava's and
-#: others' plain `<power>`.
-_GPX_EXTENSIONS = {"power": "power", "powerinwatts": "power", "watts": "power",
-                   "speed": "speed", "cad": "cadence", "cadence": "cadence",
-                   "atemp": "temperature", "temp": "temperature"}
-
-
 def _gpx_extensions(point: Any) -> dict[str, float]:
-    """The `_GPX_EXTENSIONS` values of a GPX point; a value that is not a number is left
-    out (missing), as a record without it."""
+    """The `SENSOR_NAMES` values of a GPX point's extensions (NaN: not a number)."""
     out: dict[str, float] = {}
     for ext in point.extensions:
         for el in ext.iter():
-            name = _GPX_EXTENSIONS.get(str(el.tag).rpartition("}")[2].lower())
+            name = SENSOR_NAMES.get(str(el.tag).rpartition("}")[2].lower())
             if name and el.text:
-                with contextlib.suppress(ValueError):
-                    out[name] = float(el.text)
+                out[name] = sensor_value(el.text)
     return out
 
 

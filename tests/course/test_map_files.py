@@ -15,6 +15,7 @@ import pytest
 from itt_planner.course.loader import load_course
 from itt_planner.course.track_files import Recording, read_recording
 from itt_planner.errors import CourseError
+from itt_planner.logs.ride_import import import_ride
 
 #: The ride's first 720 records (12 min at 1 Hz, 4.8 km through its first corners).
 POINTS = 720
@@ -90,6 +91,44 @@ def test_map_formats_read_as_the_gpx(tmp_path: Path, ride: Recording) -> None:
     lengths = {p.name: load_course(p).length_m for p in (gpx, *maps)}
     assert max(lengths.values()) - min(lengths.values()) < 1e-6, lengths
     assert 4500 < lengths["route.gpx"] < 5200
+
+
+def test_a_kml_track_carries_its_sensors(tmp_path: Path, ride: Recording) -> None:
+    """Google Earth's gx:Track of a ride with its ExtendedData arrays: the ride's power,
+    cadence and speed read as the FIT's, a value that is not a number as missing, an
+    array of another length as absent; imported, the power is in the ride log."""
+    keep = np.flatnonzero(np.isfinite(ride.lat_deg))[:POINTS]
+    assert ride.time_s is not None and ride.power_w is not None
+    assert ride.cadence_rpm is not None and ride.speed_mps is not None
+    power = [f"{ride.power_w[i]:g}" for i in keep]
+    power[5] = "n/a"
+
+    def array(name: str, values: list[str]) -> str:
+        return (f'<gx:SimpleArrayData name="{name}">'
+                + "".join(f"<gx:value>{v}</gx:value>" for v in values) + "</gx:SimpleArrayData>")
+
+    track = tmp_path / "ride.kml"
+    track.write_text(
+        '<?xml version="1.0"?><kml xmlns="http://www.opengis.net/kml/2.2" '
+        'xmlns:gx="http://www.google.com/kml/ext/2.2"><Document><Placemark><gx:Track>'
+        + "".join(f"<when>{_iso(ride.time_s[i])}</when>" for i in keep)
+        + "".join(f"<gx:coord>{ride.lon_deg[i]} {ride.lat_deg[i]} {ride.ele_m[i]}</gx:coord>"
+                  for i in keep)
+        + '<ExtendedData><SchemaData schemaUrl="#s">' + array("power", power)
+        + array("Cadence", [f"{ride.cadence_rpm[i]:g}" for i in keep])
+        + array("speed", [f"{ride.speed_mps[i]:.6f}" for i in keep])
+        + array("heartrate", ["140"] * POINTS) + array("temperature", ["19"] * 3)
+        + "</SchemaData></ExtendedData></gx:Track></Placemark></Document></kml>")
+    got = read_recording(track)
+    assert got.power_w is not None and got.cadence_rpm is not None and got.speed_mps is not None
+    want = ride.power_w[keep].copy()
+    want[5] = np.nan
+    np.testing.assert_array_equal(got.power_w, want)
+    np.testing.assert_array_equal(got.cadence_rpm, ride.cadence_rpm[keep])
+    np.testing.assert_allclose(got.speed_mps, ride.speed_mps[keep], atol=1e-6)
+    assert got.temperature_c is None  # 3 values for 720 points: not this track's
+    summary = import_ride(track, tmp_path / "ride.mcap")
+    assert summary.topics["/itt/power"] == POINTS - 1 and summary.topics["/itt/speed"] == POINTS
 
 
 def test_geojson_shapes_and_multilines(tmp_path: Path) -> None:
