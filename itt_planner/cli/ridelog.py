@@ -27,7 +27,8 @@ def _human_import(r: dict[str, Any]) -> str:
 @app.command("import")
 def import_cli(
     ride: Path = typer.Argument(
-        ..., help="Recorded ride: .fit, .gpx, .tcx or .csv with times (or gzipped: .fit.gz)."),
+        ..., help="Recorded ride with times: .fit, .gpx, .tcx, .csv, a .kml/.kmz gx:Track or "
+                  ".geojson (or gzipped: .fit.gz)."),
     output: Path = typer.Option(..., "--output", "-o", help="The MCAP ride log to write."),
     rider: str = typer.Option("", "--rider", help="Rider name for the log's metadata."),
     namespace: str = typer.Option("/itt", "--namespace", help="ROS namespace of the topics."),
