@@ -35,7 +35,8 @@ GPS_JUMP_SPEED_MPS = 30.0
 POWER_SPIKE_W = 1500.0
 #: Mean Earth radius (IUGG): great-circle distance = radius x angular separation.
 EARTH_RADIUS_M = 6_371_008.8
-#: Slower than this between two records is standing (walking pace is ~1.4 m/s).
+#: Slower than this is standing (walking pace is ~1.4 m/s): across a gap between two
+#: records, and for calibration's moving samples (below it GPS wanders, nothing is fitted).
 MOVING_MPS = 1.0
 #: A gap of 2 s up to this long, across which the rider moved on at `MOVING_MPS` or more, is
 #: the recorder's, not a stop: smart recording (many Garmin units' default) writes a record
