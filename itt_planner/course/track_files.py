@@ -20,6 +20,7 @@ import hashlib
 import io
 import zlib
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -255,28 +256,35 @@ def _read_fit(path: Path, data: bytes) -> Recording:
     )
 
 
+#: CSV header names of each column read (lower case), and the factor to SI units.
+_CSV_COLUMNS: dict[str, tuple[tuple[str, ...], float]] = {
+    "lat": (("lat", "latitude"), 1.0), "lon": (("lon", "lng", "long", "longitude"), 1.0),
+    "ele": (("ele", "elevation", "alt", "altitude"), 1.0), "time": (("time", "timestamp"), 1.0),
+    "power": (("power", "watts"), 1.0), "speed": (("speed",), 1.0),
+    "speed_kmh": (("kph", "kmh", "speed_kmh"), 1 / 3.6), "cadence": (("cadence", "cad"), 1.0),
+    "temperature": (("temperature", "temp", "atemp"), 1.0),
+}
+
+
 def _read_csv(path: Path, data: bytes) -> Recording:
-    """CSV either `lon,lat,ele` without header, or with a header naming lat/lon/ele columns."""
+    """CSV either `lon,lat,ele` without header, or with a header naming its columns
+    (`_CSV_COLUMNS`; time as POSIX seconds or ISO 8601, a zone-less stamp being UTC)."""
     text = data.decode("utf-8-sig", errors="replace")
     rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
     if not rows:
         raise CourseError(f"{path}: no rows")
     header = [c.strip().lower() for c in rows[0]]
-    aliases = {"lat": ("lat", "latitude"), "lon": ("lon", "lng", "long", "longitude"),
-               "ele": ("ele", "elevation", "alt", "altitude"), "time": ("time", "timestamp"),
-               "power": ("power", "watts"), "speed": ("speed",)}
-    if any(h in aliases["lat"] for h in header):
-        def index(key: str) -> int | None:
-            return next((header.index(a) for a in aliases[key] if a in header), None)
-        cols = {k: index(k) for k in aliases}
+    if any(h in _CSV_COLUMNS["lat"][0] for h in header):
+        cols = {key: next((header.index(a) for a in names if a in header), None)
+                for key, (names, _) in _CSV_COLUMNS.items()}
         if cols["lon"] is None:
             raise CourseError(f"{path}: header has a latitude but no longitude column")
         body = rows[1:]
     else:
         if len(rows[0]) < 2:
             raise CourseError(f"{path}: expected 'lon,lat[,ele]' rows, got {rows[0]!r}")
-        cols = {"lon": 0, "lat": 1, "ele": 2 if len(rows[0]) > 2 else None,
-                "time": None, "power": None, "speed": None}
+        cols = dict.fromkeys(_CSV_COLUMNS)
+        cols.update(lon=0, lat=1, ele=2 if len(rows[0]) > 2 else None)
         body = rows
 
     def column(key: str) -> list[float | None]:
@@ -287,14 +295,29 @@ def _read_csv(path: Path, data: bytes) -> Recording:
                 out.append(None)
                 continue
             try:
-                out.append(float(row[i]))
+                out.append(_csv_number(row[i], key) * _CSV_COLUMNS[key][1])
             except ValueError:
-                msg = f"{path}: line {line_no}: {key} {row[i]!r} is not a number"
+                msg = (f"{path}: line {line_no}: {key} {row[i]!r} is not a number"
+                       + (" or an ISO 8601 time" if key == "time" else ""))
                 raise CourseError(msg) from None
         return out
 
+    speed = _opt(column("speed"))
     return Recording(
         path=path, sha256=file_sha256(path), lat_deg=_arr(column("lat")),
         lon_deg=_arr(column("lon")), ele_m=_arr(column("ele")), time_s=_opt(column("time")),
-        speed_mps=_opt(column("speed")), power_w=_opt(column("power")),
+        speed_mps=speed if speed is not None else _opt(column("speed_kmh")),
+        power_w=_opt(column("power")), cadence_rpm=_opt(column("cadence")),
+        temperature_c=_opt(column("temperature")),
     )
+
+
+def _csv_number(text: str, key: str) -> float:
+    """A CSV cell as a number; a time may also be an ISO 8601 stamp (UTC without a zone)."""
+    try:
+        return float(text)
+    except ValueError:
+        if key != "time":
+            raise
+    stamp = datetime.fromisoformat(text.strip())
+    return (stamp if stamp.tzinfo else stamp.replace(tzinfo=UTC)).timestamp()

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import gzip
 from collections.abc import Callable
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -79,6 +80,28 @@ def test_gpx_extensions_power_speed_cadence_temperature(tmp_path: Path) -> None:
     np.testing.assert_array_equal(rec.speed_mps, [11.5, 12.0, np.nan, np.nan])
     np.testing.assert_array_equal(rec.cadence_rpm, [90, 92, np.nan, np.nan])
     assert record_temperature_c(rec) == 22.0
+
+
+def test_csv_ride_with_iso_times_and_sensor_columns(tmp_path: Path) -> None:
+    """A ride exported as CSV (GoldenCheetah-like names): ISO 8601 times (UTC without a
+    zone), power, speed in km/h, cadence, temperature; a bad time names line and field."""
+    csv = tmp_path / "ride.csv"
+    csv.write_text("timestamp,latitude,longitude,altitude,watts,kph,cad,temp\n"
+                   "2026-01-01T10:00:00Z,45.0,11.0,100,250,36,90,21\n"
+                   "2026-01-01T10:00:01,45.0001,11.0,100,,36.9,,21\n"
+                   "2026-01-01T11:00:02+01:00,45.0002,11.0,101,260,37.8,92,23\n")
+    rec = read_recording(csv)
+    assert rec.time_s is not None and rec.speed_mps is not None and rec.power_w is not None
+    start = datetime(2026, 1, 1, 10, tzinfo=UTC).timestamp()
+    np.testing.assert_array_equal(rec.time_s - start, [0, 1, 2])
+    np.testing.assert_allclose(rec.speed_mps, [10.0, 10.25, 10.5])
+    np.testing.assert_array_equal(rec.power_w, [250, np.nan, 260])
+    assert rec.cadence_rpm is not None and rec.cadence_rpm[2] == 92
+    assert record_temperature_c(rec) == 21.0
+    csv.write_text("time,lat,lon\n2026-01-01T10:00:00Z,45,11\nyesterday,45,11\n")
+    with pytest.raises(CourseError, match=r"line 3: time 'yesterday' is not a number or an "
+                                          "ISO 8601 time"):
+        read_recording(csv)
 
 
 @pytest.mark.parametrize(("name", "text", "problem"), [
