@@ -12,8 +12,9 @@ given, altitude in metres. A gx:Track's `ExtendedData` arrays (`gx:SimpleArrayDa
 Google Earth and GPS Visualizer write a ride's sensors) give power, speed, cadence and
 temperature by `SENSOR_NAMES`.
 
-Also what every XML track format needs: the clean-up before the declaration (`xml_text`)
-and the sensor names (`SENSOR_NAMES`, the GPX reader's extensions too).
+Also what every track format shares: the clean-up before an XML declaration (`xml_text`),
+the sensor names (`SENSOR_NAMES`, the GPX reader's extensions too) and ISO 8601 stamps
+(`iso_stamp_s`, a CSV's times too).
 """
 
 from __future__ import annotations
@@ -70,6 +71,13 @@ def sensor_value(text: str | None) -> float:
         return float(text) if text else _NAN
     except ValueError:
         return _NAN
+
+
+def iso_stamp_s(text: str) -> float:
+    """POSIX seconds of an ISO 8601 stamp; one without a zone is UTC, as GPX's and KML's
+    are. Raises ValueError (TypeError for a non-string) when it is not a stamp."""
+    stamp = datetime.fromisoformat(text)
+    return (stamp if stamp.tzinfo else stamp.replace(tzinfo=UTC)).timestamp()
 
 
 def xml_text(data: bytes) -> bytes:
@@ -217,7 +225,6 @@ def _stamps(path: Path, times: Any, n: int) -> list[float]:
         return [_NAN] * n
     try:
         # A stamp without a zone is UTC, as GPX's and KML's are.
-        return [_NAN if not t else datetime.fromisoformat(t).replace(
-            tzinfo=datetime.fromisoformat(t).tzinfo or UTC).timestamp() for t in times]
+        return [iso_stamp_s(t) if t else _NAN for t in times]
     except (TypeError, ValueError) as err:
         raise CourseError(f"{path}: a point's time is not an ISO 8601 stamp ({err})") from None

@@ -20,7 +20,6 @@ import hashlib
 import io
 import zlib
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -29,6 +28,7 @@ import numpy as np
 from itt_planner.course.map_files import (
     SENSOR_NAMES,
     MapRoute,
+    iso_stamp_s,
     read_geojson,
     read_kml,
     sensor_value,
@@ -319,5 +319,4 @@ def _csv_number(text: str, key: str) -> float:
     except ValueError:
         if key != "time":
             raise
-    stamp = datetime.fromisoformat(text.strip())
-    return (stamp if stamp.tzinfo else stamp.replace(tzinfo=UTC)).timestamp()
+    return iso_stamp_s(text.strip())
