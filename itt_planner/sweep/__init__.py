@@ -19,7 +19,5 @@ work without it.
 
 import lazy_loader
 
-# Each public name loads on first use from the module `__init__.pyi` imports it from
-# (lazy_loader reads the stub's imports; type checkers read the stub as the package): a
-# process that needs one module no longer imports every stage of the package with it.
+# Public names load on first use, from `__init__.pyi` (why: itt_planner/__init__.py).
 __getattr__, __dir__, __all__ = lazy_loader.attach_stub(__name__, __file__)
