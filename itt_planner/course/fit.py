@@ -19,7 +19,8 @@ pipeline here:
    turns by more than ~30 deg within +-30 m count as corners: the second pass bends by a
    few degrees on a noisy straight, and without that gate each bump got a short smoothing
    length and survived as a spurious 150-300 m "corner". All lengths scale with the noise
-   measured after the first pass;
+   measured after the first pass. A gap in the fixes (`track_gaps`) is filled with points
+   on its chord first: the spline would swing wide of it;
 5. resample at uniform arc length of the fitted curve, heading from the spline derivative,
    then a Gaussian filter on the heading (spreads the curvature bursts that the last few
    fixes of noise leave in a corner) and positions re-integrated from it;
@@ -28,7 +29,7 @@ pipeline here:
    in `course_elevation` (device, smoothed, route or a mix), with its checks;
 7. road width: `GPS_ROAD_WIDTH_M` unless set for the course or per stretch.
 
-What trimming, the elevation choice and the width did is kept in `Course.build`.
+What trimming, the gaps, the elevation choice and the width did is kept in `Course.build`.
 
 A cubic smoothing spline with weights w_i and penalty lam has a local equivalent-kernel
 bandwidth h = (lam / (w * rho)) ** 0.25, rho = points per metre (Silverman 1984); the
@@ -49,6 +50,7 @@ from itt_planner.course.elevation import ElevationOptions, build_profile
 from itt_planner.course.geometry import GPS_ROAD_WIDTH_M, Course
 from itt_planner.course.track_clean import CleanSettings, Track, clean_fixes, close_loop
 from itt_planner.course.track_files import Recording, read_recording
+from itt_planner.course.track_gaps import fill_gaps, gap_report
 from itt_planner.course.trim import TrimOptions, trim_track
 from itt_planner.errors import CourseError
 
@@ -134,11 +136,10 @@ def fit_course(rec: Recording, settings: FitSettings = FitSettings(),
     track, trim = trim_track(track, rec, options.trim)
     track = close_loop(track, settings.clean)
     s, x, y, theta, kappa, s_pts = _fit_plan(track, settings)
-    length = float(s[-1])
 
     def fit(sp: np.ndarray, zp: np.ndarray, scale_m: float) -> np.ndarray:
         st = replace(settings, altitude_scale_m=scale_m)
-        return _fit_altitude(sp, zp, length, track.closed_loop, st)(s)
+        return _fit_altitude(sp, zp, float(s[-1]), track.closed_loop, st)(s)
 
     try:
         z, elevation = build_profile(s, x, y, track.origin, (s_pts, track.z_m),
@@ -154,8 +155,13 @@ def fit_course(rec: Recording, settings: FitSettings = FitSettings(),
         trim_report["notes"].append(
             f"{track.moving_speed0} fixes kept although the device speed read 0: the GPS "
             "moved (a wheel sensor lags a standing start)")
+    # Where the fixes are along the course's own arc length (its heading was filtered).
+    s_fix = np.interp(s_pts, s, np.append(0.0, np.cumsum(np.hypot(np.diff(x), np.diff(y)))))
+    gap_rows, gap_warnings = gap_report(np.column_stack([track.x_m, track.y_m]), None if rec.time_s
+                                        is None else np.asarray(rec.time_s, float)[track.index],
+                                        s_fix, track.stamped)
     build = {"trim": trim_report, "elevation": elevation, "road_width": width_report,
-             "warnings": list(elevation["warnings"])}
+             "gaps": gap_rows, "warnings": list(elevation["warnings"]) + gap_warnings}
     return Course.from_centerline(
         rec.path.name.split(".")[0], x, y, z, origin=track.origin,
         closed_loop=track.closed_loop, ds_m=settings.ds_m, theta_rad=theta, kappa_per_m=kappa,
@@ -214,11 +220,8 @@ def _fit_plan(track: Track, st: FitSettings  # noqa: PLR0915  (one pipeline; pas
         xy_fit = np.vstack([xy[tail], xy, xy[head]])
     else:
         u_fit, xy_fit = u_pts, xy
-    if len(u_fit) < 5:
-        # make_smoothing_spline needs 5 points; densify a tiny track linearly.
-        u_new = np.linspace(u_fit[0], u_fit[-1], 5)
-        xy_fit = np.column_stack([np.interp(u_new, u_fit, xy_fit[:, k]) for k in range(2)])
-        u_fit = u_new
+    # Straight across the gaps; `at`: where each fix (padding included) went.
+    u_fit, xy_fit, at = fill_gaps(u_fit, xy_fit)
 
     # Passes 1 and 2 use one moderate smoothing length everywhere: enough to find where the
     # corners are and to re-parametrise the fixes by their foot point on the curve (the
@@ -227,7 +230,7 @@ def _fit_plan(track: Track, st: FitSettings  # noqa: PLR0915  (one pipeline; pas
     # scale with the noise measured after pass 1 (a map-drawn track needs far less).
     h = np.full(len(u_fit), st.corner_search_scale_m)
     spl = _smooth(u_fit, xy_fit, h)
-    noise = _noise_factor(spl, u_fit, xy_fit, st)
+    noise = _noise_factor(spl, u_fit[at], xy_fit[at], st)  # the fixes' noise, not the fill's
     for k in range(1, 3):
         u_fit = _reparametrise(spl, u_fit, xy_fit)
         if k == 2:
@@ -248,12 +251,9 @@ def _fit_plan(track: Track, st: FitSettings  # noqa: PLR0915  (one pipeline; pas
                         st.straight_scale_m)
             h = uniform_filter1d(h, win, mode="nearest")
         spl = _smooth(u_fit, xy_fit, h * noise)
+    u_pts = u_fit[at[off: off + n_pts]]
     if track.closed_loop:
-        u_pts = u_fit[off: off + n_pts]
-        period = float(u_fit[off + n_pts] - u_fit[off])
-    else:
-        u_pts = u_fit if len(u_fit) == n_pts else np.interp(
-            np.arange(n_pts), np.linspace(0, n_pts - 1, len(u_fit)), u_fit)
+        period = float(u_fit[at[off + n_pts]] - u_pts[0])
 
     # Arc length of the fitted curve, then a uniform grid in it.
     u0 = float(u_pts[0])

@@ -27,6 +27,7 @@ from scipy.ndimage import uniform_filter1d
 
 from itt_planner.course.geometry import GeoOrigin
 from itt_planner.course.track_files import Recording
+from itt_planner.course.track_gaps import find_gaps
 from itt_planner.errors import CourseError
 
 #: A GPS log at 1 Hz has fixes 5-20 m apart at racing speed (`Track.distance_m`).
@@ -102,12 +103,16 @@ class Track:
         stamps: drawn on a map, points every few metres in bends and one per straight)
         has no noise to remove, and in a sparse log (median step `_DENSE_STEP_M` or more:
         a fix every few seconds) the gain is small against the step; an average over 5
-        of them cuts the corners (a St John's route simplified to 2 m: -1.6 %).
+        of them cuts the corners (a St John's route simplified to 2 m: -1.6 %). Nor is
+        the average taken across a gap (`track_gaps`): a GPS log of four recordings with
+        1.4-5.4 km between them measured 9.5 km for 11.4 km of chords.
         """
         x, y = self.x_m, self.y_m
         if (self.stamped and len(x) > 1
                 and np.median(np.hypot(np.diff(x), np.diff(y))) < _DENSE_STEP_M):
-            x, y = (uniform_filter1d(a, 5, mode="nearest") for a in (x, y))
+            runs = [g.fix + 1 for g in find_gaps(np.column_stack([x, y]))]
+            x, y = (np.concatenate([uniform_filter1d(part, 5, mode="nearest")
+                                    for part in np.split(a, runs)]) for a in (x, y))
         return np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))])
 
 
