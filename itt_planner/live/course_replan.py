@@ -330,7 +330,11 @@ class CourseReplanner:
         them, and the transcriptions of recent node counts (`course_nlp`'s cache).
         """
         worker = self._worker
-        if worker is None or worker.poll() is not None:
+        if worker is not None and worker.poll() is not None:
+            # Died between re-solves: reported as if during one (never replaced silently).
+            msg = f"the course re-solve worker had exited with code {self._drop_worker()}"
+            raise SolveError(msg, status="worker_failed")
+        if worker is None:
             worker = subprocess.Popen([sys.executable, "-c", WORKER_PROGRAM, str(os.getpid())],
                                       stdin=subprocess.PIPE, stdout=subprocess.PIPE)
             self._worker = worker
@@ -347,25 +351,29 @@ class CourseReplanner:
         except (OSError, EOFError):
             reply = None
         if reply is None:  # the worker died (or was killed by `close`)
-            worker.kill()
-            code = worker.wait()
-            msg = f"the course re-solve worker exited with code {code}"
+            msg = f"the course re-solve worker exited with code {self._drop_worker()}"
             raise SolveError(msg, status="worker_failed")
         if reply[0] == "error":  # the solve raised in the worker, which goes on
             raise SolveError(reply[2], status=reply[1])
         result: tuple[Plan, PrimalDual | None] = reply[1]
         return result
 
+    def _drop_worker(self) -> int | None:
+        """Kill the worker if it runs, reap it, close its pipes; its exit code."""
+        worker, self._worker = self._worker, None
+        if worker is None:
+            return None
+        if worker.poll() is None:
+            worker.kill()
+        code = worker.wait()
+        for pipe in (worker.stdin, worker.stdout):
+            if pipe is not None:
+                pipe.close()
+        return code
+
     def close(self) -> None:
         """Stop now: a solve still running is abandoned (the worker killed)."""
         self._closed.set()
-        worker = self._worker
-        if worker is not None:
-            if worker.poll() is None:
-                worker.kill()
-            worker.wait()
-            for pipe in (worker.stdin, worker.stdout):
-                if pipe is not None:
-                    pipe.close()
+        self._drop_worker()
         self._waiter.shutdown(wait=False, cancel_futures=True)
         self._pending = None
