@@ -151,10 +151,8 @@ def fit_course(rec: Recording, settings: FitSettings = FitSettings(),
     trim_report = trim.as_dict()
     trim_report["finish_m"] = round(trim.start_m + float(track.distance_m[-1]), 1)
     trim_report["moving_with_speed_0"] = track.moving_speed0
-    if track.moving_speed0:
-        trim_report["notes"].append(
-            f"{track.moving_speed0} fixes kept although the device speed read 0: the GPS "
-            "moved (a wheel sensor lags a standing start)")
+    trim_report["repeated"] = track.repeated
+    trim_report["notes"].extend(track.notes())
     # Where the fixes are along the course's own arc length (its heading was filtered).
     s_fix = np.interp(s_pts, s, np.append(0.0, np.cumsum(np.hypot(np.diff(x), np.diff(y)))))
     gap_rows, gap_warnings = gap_report(np.column_stack([track.x_m, track.y_m]), None if rec.time_s

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -98,6 +99,26 @@ def test_a_smart_recorded_loop_is_the_loop(real_course: Callable[[str], Course],
     assert smart.length_m == pytest.approx(ride.length_m, rel=0.003)
     # Seeds 1-6: 12-16 corners against the ride's 14 (the bends near the threshold).
     assert abs(len(smart.corners) - len(ride.corners)) <= 2
+
+
+def test_a_stretch_written_twice_is_ridden_once(real_course: Callable[[str], Course],
+                                               data_file: Callable[[str], Path]) -> None:
+    """60 records of St John's written again after themselves (a device recovering from a
+    crash, files joined with an overlap): the copies are dropped and said so. Kept, the
+    course turned round at the copy's end and rode it again: 42.35 km and 16 corners
+    against 41.30 km and 14 (gpxpy's korita-zbevnica log with 50 fixes copied: 2.0 km
+    more, 7 more corners, one of 5.7 m)."""
+    rec = read_recording(data_file("rides/edge810_vector_stjohns_2013.fit"))
+    n = len(rec.lat_deg)
+    order = np.concatenate([np.arange(2060), np.arange(2000, n)])
+    copied = dataclasses.replace(rec, **{
+        f.name: getattr(rec, f.name)[order] for f in dataclasses.fields(rec)
+        if isinstance(getattr(rec, f.name), np.ndarray) and len(getattr(rec, f.name)) == n})
+    course, ride = fit_course(copied), real_course("rides/edge810_vector_stjohns_2013.fit")
+    assert course.length_m == pytest.approx(ride.length_m, abs=2.0)
+    assert len(course.corners) == len(ride.corners)
+    assert course.build["trim"]["repeated"] == 60
+    assert any("60 records dropped" in note for note in course.build["trim"]["notes"])
 
 
 def _write(tmp_path: Path, name: str, text: str) -> Path:
