@@ -9,6 +9,7 @@ only here.
 from __future__ import annotations
 
 import json
+import math
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -44,15 +45,24 @@ def errors_to_exit(as_json: bool) -> Iterator[None]:
 def emit(result: dict[str, Any], as_json: bool, human: Callable[[dict[str, Any]], str]) -> None:
     """Print `result` as one JSON object, or as the text `human(result)`."""
     if as_json:
-        typer.echo(json.dumps(result, default=_jsonable))
+        typer.echo(json.dumps(_plain(result), default=str, allow_nan=False))
     else:
         typer.echo(human(result))
 
 
-def _jsonable(value: Any) -> Any:
+def _plain(value: Any) -> Any:
+    """JSON-ready: arrays as lists, NaN and infinities as null (JSON has neither: Python
+    wrote `NaN`, which `jq` and other readers refuse; a simulated ride that did not
+    finish has no finish time)."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
     if hasattr(value, "tolist"):
-        return value.tolist()
-    return str(value)
+        return _plain(value.tolist())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
 
 
 def progress_enabled() -> bool:

@@ -17,6 +17,9 @@ SUBOPTIMAL_FEASIBLE = "Suboptimal_Feasible"
 #: Status of the rescue's smooth solution with exact W' that passed `feasible` (success=True,
 #: `outcome` the polish's: never converged, so counted as unconverged; `horizon_rescue`).
 SMOOTHED_FEASIBLE = "Smoothed_Feasible"
+#: Status added when a solution fails `HorizonPlanner.resolved` (an integration artefact:
+#: success=False, the last good advice stays).
+UNRESOLVED = "Unresolved_Dynamics"
 
 
 @dataclass(frozen=True)
@@ -36,7 +39,18 @@ class HorizonSettings:
             median 18 iterations (bench/RESULTS.md). 120 s leaves every window at
             >= 8.3 m/s (30 km/h) its full `horizon_m`.
         n_intervals: fixed number of shooting intervals over the window.
-        substeps: RK4 substeps per interval.
+        substeps: RK4 substeps per interval ...
+        stiff_substeps, stiff_ratio: ... and in a window where one step per interval
+            is outside RK4's stable range (`HorizonPlanner.stiff`: `h 2 a / v^2` over
+            `stiff_ratio` somewhere). Why: the 4-5 m intervals of a window up gpxpy's
+            korita-zbevnica ramp (22 %, a spent rider at 2.2 m/s) were, and IPOPT rode
+            the artefact (2.5 -> 27 m/s in 10 m, "converged"): advice of 0 W that
+            stalled the virtual rider. Two substeps everywhere cost 26 % of the median
+            replan on verona-like and lost 3 of 50 replans of test_horizon's technical
+            descent (bench/RESULTS.md, 2026-12-04).
+        resolve_tol_mps: a solution is usable only if every interval, integrated again
+            with four times the substeps, ends within this (plus 5 % of the speed) of
+            its next node's speed (`HorizonNlp.resolved`): the artefact check.
         h_min_m, h_max_m: finest and coarsest window intervals (before the fixed node
             count rescales them).
         near_grade: how fast the spacing may grow with the distance ahead of the
@@ -91,6 +105,9 @@ class HorizonSettings:
     min_window_m: float = 200.0
     n_intervals: int = 60
     substeps: int = 1
+    stiff_substeps: int = 2
+    stiff_ratio: float = 2.0
+    resolve_tol_mps: float = 0.3
     h_min_m: float = 2.5
     h_max_m: float = 30.0
     near_grade: float = 0.1

@@ -4,6 +4,7 @@ warm starts, budget-capped iterates that are still valid advice, the rescue, fai
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -239,26 +240,28 @@ def test_rescue_when_the_exact_nlp_fails(plan: Plan, polish_fails: bool,
     rider = PRESETS["paper"]
     settings = HorizonSettings(horizon_m=500.0, max_iter=150, max_wall_time_s=20.0)
     rescuer = HorizonPlanner(COURSE, rider, plan, settings=settings)
-    rescue = rescuer._rescue
-    assert rescue is not None
 
     def fail(w0: np.ndarray, *_args: object, **_kwargs: object) -> SolveResult:
         return SolveResult(w0, None, None, float("nan"), PlanStatus.FAILED,
                            "Restoration_Failed", 1, 0.0)
 
-    for solver in rescuer._solvers.values():
-        monkeypatch.setattr(solver, "solve", fail)
-    if polish_fails:
-        monkeypatch.setattr(rescue.polish, "solve", fail)
     smooth: list[np.ndarray] = []
-    real_smooth = rescue.smooth.solve
 
-    def smooth_solve(*args: object, **kwargs: object) -> SolveResult:
-        out = real_smooth(*args, **kwargs)  # type: ignore[arg-type]
-        smooth.append(out.w)
-        return out
+    def recorded(real: Callable[..., SolveResult]) -> Callable[..., SolveResult]:
+        def smooth_solve(*args: object, **kwargs: object) -> SolveResult:
+            out = real(*args, **kwargs)
+            smooth.append(out.w)
+            return out
+        return smooth_solve
 
-    monkeypatch.setattr(rescue.smooth, "solve", smooth_solve)
+    for nlp in rescuer._nlps.values():  # whichever substeps a window takes
+        rescue = nlp.rescue
+        assert rescue is not None
+        for solver in nlp.solvers.values():
+            monkeypatch.setattr(solver, "solve", fail)
+        if polish_fails:
+            monkeypatch.setattr(rescue.polish, "solve", fail)
+        monkeypatch.setattr(rescue.smooth, "solve", recorded(rescue.smooth.solve))
     for s in (100.0, 300.0):
         smooth.clear()
         sol = rescuer.solve(plan_state(plan, s))
