@@ -65,7 +65,7 @@ Design choices:
 - Real-time iteration idea: an attempt stopped by the iteration or wall-time cap
   (`PlanStatus.CAPPED`) is still returned as success, status "Suboptimal_Feasible"
   (`outcome` capped), when its iterate
-  passes `feasible` - continuity gaps and bounds within `feasible_tol`, W' >= 0, grip
+  passes `HorizonNlp.feasible` - continuity gaps and bounds within `feasible_tol`, W' >= 0, grip
   and pedalling limits within `grip_tol`. Why: a trajectory that starts at the rider,
   obeys the dynamics, stays on the road, within grip and never empties W' below 0 is
   valid advice, while dropping it leaves the rider with older advice from a stale
@@ -94,11 +94,12 @@ Design choices:
   it is, and the exact W' is never below the smooth one - the iterate passes `feasible`
   (dynamics, road, grip, W' >= 0) like any other. It errs on the cautious side (W'
   spent later), and only where the exact NLP found nothing.
-- Two RK4 substeps per interval, and every solution integrated again with four times
-  as many (`resolved`) before it is advised: at a crawl up a steep ramp one step per
-  4-5 m interval was outside RK4's stable range, and IPOPT converged on the artefact
-  (2.5 -> 27 m/s in 10 m up 22 %; `HorizonSettings.substeps`). A solution whose
-  intervals do not hold is a failure ("Unresolved_Dynamics"), whatever IPOPT said.
+- Two RK4 substeps per interval in a stiff window (`stiff`), and every solution
+  integrated again with four times as many (`HorizonNlp.resolved`) before it is
+  advised: at a crawl up a steep ramp one step per 4-5 m interval was outside RK4's
+  stable range, and IPOPT converged on the artefact (2.5 -> 27 m/s in 10 m up 22 %;
+  `HorizonSettings.stiff_substeps`). A solution whose intervals do not hold is a
+  failure ("Unresolved_Dynamics"), whatever IPOPT said.
 - Windows of at most `max_window_s` of the plan's riding (never under `min_window_m`):
   a fixed node count over 1 km up a slow climb made intervals of ~4 s, stiff and failing
   (`HorizonSettings`).

@@ -29,7 +29,7 @@ from itt_planner.ocp.transcription import Transcription, transcribe
 log = logging.getLogger(__name__)
 
 #: (iterate, parameters, lower and upper simple bounds) -> whether it is valid advice
-#: (`HorizonPlanner.feasible`: dynamics, road, grip, W' >= 0).
+#: (`HorizonNlp.feasible`: dynamics, road, grip, W' >= 0).
 Feasible = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], bool]
 
 

@@ -12,12 +12,12 @@ import numpy as np
 if TYPE_CHECKING:  # the solver imports CasADi; settings stay light for the live engine
     from itt_planner.ocp.solver import PlanStatus
 
-#: Status of a budget-capped iterate that passed `HorizonPlanner.feasible` (success=True).
+#: Status of a budget-capped iterate that passed `HorizonNlp.feasible` (success=True).
 SUBOPTIMAL_FEASIBLE = "Suboptimal_Feasible"
 #: Status of the rescue's smooth solution with exact W' that passed `feasible` (success=True,
 #: `outcome` the polish's: never converged, so counted as unconverged; `horizon_rescue`).
 SMOOTHED_FEASIBLE = "Smoothed_Feasible"
-#: Status added when a solution fails `HorizonPlanner.resolved` (an integration artefact:
+#: Status added when a solution fails `HorizonNlp.resolved` (an integration artefact:
 #: success=False, the last good advice stays).
 UNRESOLVED = "Unresolved_Dynamics"
 
