@@ -150,8 +150,10 @@ class HorizonPlanner:
                                            sharpness_w=settings.sharpness_w)
         self._par = ModelParams(rider, conditions, settings.w_delta, settings.w_power).vector()
         self._window = HorizonWindow(self._model, course, rider, plan, conditions, settings)
-        self._nlps = {k: HorizonNlp(self._model, settings, k, self._par)
-                      for k in sorted({settings.substeps, settings.stiff_substeps})}
+        # The stiff windows' NLP is built at the first such window: a node starts
+        # 0.16 s sooner (0.10 s against 0.26 s), and most courses never need it.
+        self._nlps = {settings.substeps: HorizonNlp(self._model, settings, settings.substeps,
+                                                    self._par)}
         self._tr = self._nlps[settings.substeps].tr  # the layout and parameters of both
         self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._previous_mult: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -236,8 +238,8 @@ class HorizonPlanner:
         lay, m = self._tr.layout, self._model
         bounds = self._window.bounds(nodes, self.initial_state(state, s0))
         x0 = bounds.x0
-        nlp = self._nlps[st.stiff_substeps if self.stiff(nodes, float(x0[m.index("v")]))
-                         else st.substeps]
+        nlp = self._nlp(st.stiff_substeps if self.stiff(nodes, float(x0[m.index("v")]))
+                        else st.substeps)
         end = nodes[-1]
         e_target = self._window.terminal_e_n(nodes, float(x0[m.index("e_n")]))
         terminal = np.array([e_target, float(self.plan.at("v_mps", end)), st.v_weight,
@@ -315,6 +317,11 @@ class HorizonPlanner:
             solve_time_s=time.perf_counter() - t0,
             predicted_finish_s=state.elapsed_s + float(t[-1]) + plan_rest_t,
             w_prime_finish_j=float(e_j[-1]) + plan_rest_w)
+
+    def _nlp(self, substeps: int) -> HorizonNlp:
+        if substeps not in self._nlps:
+            self._nlps[substeps] = HorizonNlp(self._model, self.settings, substeps, self._par)
+        return self._nlps[substeps]
 
     def stiff(self, nodes: np.ndarray, v0_mps: float) -> bool:
         """Whether one RK4 step per interval of the window `nodes` is outside its stable

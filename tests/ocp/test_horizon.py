@@ -254,7 +254,8 @@ def test_rescue_when_the_exact_nlp_fails(plan: Plan, polish_fails: bool,
             return out
         return smooth_solve
 
-    for nlp in rescuer._nlps.values():  # whichever substeps a window takes
+    for substeps in {settings.substeps, settings.stiff_substeps}:  # whichever a window takes
+        nlp = rescuer._nlp(substeps)
         rescue = nlp.rescue
         assert rescue is not None
         for solver in nlp.solvers.values():
