@@ -74,11 +74,8 @@ def fill_gaps(u: np.ndarray, xy: np.ndarray, min_points: int = 5
     if len(u) < min_points:
         chords, step_m = np.arange(len(span)), float(u[-1] - u[0]) / (min_points - 1)
         end_m = 0.0
-    # Fractions of each chord where points go: evenly from end_m to span - end_m.
-    fracs = {int(i): (end_m + np.linspace(0.0, span[i] - 2 * end_m, n) if end_m
-                      else np.arange(1, n + 1) * span[i] / (n + 1)) / span[i]
-             for i in chords
-             if (n := int(np.ceil((span[i] - 2 * end_m) / step_m)) + (1 if end_m else -1)) > 0}
+    fracs = {int(i): _fractions(float(span[i]), step_m, end_m) for i in chords}
+    fracs = {i: f for i, f in fracs.items() if len(f)}
     extra = np.zeros(len(span), int)
     for i, f in fracs.items():
         extra[i] = len(f)
@@ -89,6 +86,18 @@ def fill_gaps(u: np.ndarray, xy: np.ndarray, min_points: int = 5
         u_new[at[i] + 1: at[i + 1]] = u[i] + f * span[i]
         xy_new[at[i] + 1: at[i + 1]] = xy[i] + f[:, None] * (xy[i + 1] - xy[i])
     return u_new, xy_new, at
+
+
+def _fractions(span_m: float, step_m: float, end_m: float) -> np.ndarray:
+    """Where points go on a chord of `span_m`, as fractions of it: at most `step_m` apart,
+    from `end_m` to `span_m - end_m` with both ends when `end_m` > 0, else strictly
+    inside the chord."""
+    inner_m = span_m - 2 * end_m
+    if end_m:
+        n = int(np.ceil(inner_m / step_m)) + 1
+        return (end_m + np.linspace(0.0, inner_m, n)) / span_m
+    n = int(np.ceil(inner_m / step_m)) - 1
+    return np.arange(1, n + 1) / (n + 1)
 
 
 def gap_report(xy: np.ndarray, time_s: np.ndarray | None, s_fix_m: np.ndarray, stamped: bool

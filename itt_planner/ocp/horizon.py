@@ -130,7 +130,7 @@ from itt_planner.ocp.horizon_settings import (
     HorizonSolution,
 )
 from itt_planner.ocp.horizon_window import HorizonWindow
-from itt_planner.ocp.mesh import road_data
+from itt_planner.ocp.mesh import road_data, speed_spacing_m
 from itt_planner.ocp.plan import Plan
 from itt_planner.ocp.solver import PlanStatus, SolveResult
 
@@ -330,7 +330,7 @@ class HorizonPlanner:
         per unit mass at that speed."""
         v = np.maximum(np.minimum(self.plan.at("v_mps", nodes[:-1]), v0_mps), 1.0)
         accel = np.abs(self.plan.at("power_w", nodes[:-1])) / (self.rider.mass_kg * v)
-        return bool(np.max(np.diff(nodes) * 2 * accel / v ** 2) > self.settings.stiff_ratio)
+        return bool(np.max(np.diff(nodes) / speed_spacing_m(v, accel)) > self.settings.stiff_ratio)
 
     def reset(self) -> None:
         """Forget the warm start (e.g. after a jump of the estimate)."""
