@@ -21,7 +21,11 @@ Per ride (tests/data/ or ../shared/data/): the rider calibrated on the same ride
    ride passes its places twice, the elevation floor: the MAE between two replays on the
    profile of one pass and of the other (two equally valid readings of the same road);
 5. one wind per 10 min (`fit_day_wind` per window) instead of one per ride (a replay loop
-   with per-interval parameters, otherwise `forward_1d`'s).
+   with per-interval parameters, otherwise `forward_1d`'s);
+6. where places are passed twice, how much of the error is the place's (what a better
+   profile, a fixed wind or a corner could explain: it repeats at every pass) and how
+   much changes between passes (gusts, position, drafting): validate's default replay's
+   error in `REPEAT_BIN_M` means, against the other pass's at the same place.
 
 With `--3d` the 3D replay too: on the course's profile, validate's default (the ride's
 altitude, `ride_elevation`) and, where places are passed twice, the passes averaged at 100 m.
@@ -39,6 +43,7 @@ from unittest import mock
 import casadi as ca
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
+from scipy.spatial import cKDTree
 from support.real_data import RIDES, locate
 
 from itt_planner.calibration import CalibrationError, CalibrationOptions, calibrate
@@ -49,6 +54,8 @@ from itt_planner.calibration.matching import course_progress
 from itt_planner.calibration.physics_check import physics_check
 from itt_planner.calibration.ride_data import RideSeries, smooth
 from itt_planner.calibration.ride_elevation import (
+    PASS_APART_M,
+    PASS_RADIUS_M,
     SMOOTHING_M,
     altitude_on_course,
     pass_readings,
@@ -69,6 +76,9 @@ from itt_planner.units import MPS_TO_KMH
 WHEELS_KG = 2 * 0.09 / 0.335 ** 2
 #: Wind windows of hypothesis 5 (s).
 WIND_WINDOW_S = 600.0
+#: Bins of hypothesis 6 (m): longer than the replay's memory of an error (drag's time
+#: constant m / (rho CdA v) ~ 20 s, ~200 m), so a bin's mean is its own.
+REPEAT_BIN_M = 250.0
 
 
 def figures(series: RideSeries, course: Course, rider: Rider, model: str = "1d",
@@ -264,6 +274,44 @@ def elevation_rows(series: RideSeries, course: Course, rider: Rider
     return out, with_profile(course, gaussian_filter1d(avg, 50.0 / course.ds_m, mode="nearest"))
 
 
+def repeat_split(course: Course, ride: RideOnCourse, run: ForwardRun) -> dict[str, float]:
+    """Hypothesis 6: the replay's speed error in `REPEAT_BIN_M` means, each bin against
+    the mean of the other pass at the same place (course points within `PASS_RADIUS_M`,
+    `PASS_APART_M` apart along it). With `a`, `b` the two passes' bin errors: the
+    correlation of a and b, the MAE of (a + b) / 2 (the place's part, plus half of what
+    changes) and of (a - b) / 2 (what changes between passes, halved). km/h."""
+    err = np.interp(ride.s_m, run.s_m, run.v_mps) - ride.v_mps
+    edges = np.arange(0.0, ride.s_m[-1] + REPEAT_BIN_M, REPEAT_BIN_M)
+    which = np.digitize(ride.s_m, edges) - 1
+    mean = np.bincount(which, err, len(edges)) / np.maximum(np.bincount(which, None,
+                                                                        len(edges)), 1)
+    xy = np.c_[course.x_m, course.y_m]
+    on_grid = np.searchsorted(course.s_m, ride.s_m).clip(0, len(course.s_m) - 1)
+    dist, idx = cKDTree(xy).query(xy[on_grid], k=32, distance_upper_bound=PASS_RADIUS_M)
+    idx = np.where(np.isfinite(dist), idx, 0)
+    other_s = np.where(np.isfinite(dist) & (np.abs(course.s_m[idx] - ride.s_m[:, None])
+                                           >= PASS_APART_M), course.s_m[idx], np.nan)
+    pairs = []  # (this bin, the other pass's bin at the same place), each pair once
+    for k in range(len(edges) - 1):
+        mine = which == k
+        there = other_s[mine][np.isfinite(other_s[mine])]
+        if mine.sum() and there.size > 0.5 * mine.sum():
+            j = int(np.median(np.digitize(there, edges) - 1))
+            if j > k:
+                pairs.append((k, j))
+    if len(pairs) < 4:
+        return {}
+    a, b = mean[[k for k, _ in pairs]], mean[[j for _, j in pairs]]
+    out = {"bins": float(len(pairs)), "corr": float(np.corrcoef(a, b)[0, 1]),
+           "place_mae_kmh": MPS_TO_KMH * float(np.mean(np.abs(a + b))) / 2,
+           "between_passes_mae_kmh": MPS_TO_KMH * float(np.mean(np.abs(a - b))) / 2}
+    print(f"  error at a place, pass against pass ({len(pairs)} bins of "
+          f"{REPEAT_BIN_M:.0f} m): correlation {out['corr']:.2f}, MAE of the place's part "
+          f"{out['place_mae_kmh']:.2f}, of the part that changes (halved) "
+          f"{out['between_passes_mae_kmh']:.2f} km/h", flush=True)
+    return out
+
+
 def one_ride(relpath: str, with_3d: bool) -> dict[str, Any]:
     path = locate(relpath)
     assert path is not None
@@ -285,6 +333,8 @@ def one_ride(relpath: str, with_3d: bool) -> dict[str, Any]:
                                     figures(series, course, rider))
     run = windowed_wind_replay(course, rider, series, ride)
     out["wind_per_10min"] = show("one wind per 10 min", physics_check(run, ride, course))
+    default = validate_ride(series, course, rider, models=("1d",))
+    out["repeat_split"] = repeat_split(course, default.on_course, default.runs[-1])
     if with_3d:
         out["3d_baseline"] = show("3D, course profile", figures(series, course, rider, "3d"))
         out["3d_auto"] = show("3D, validate's default (auto)",
