@@ -114,7 +114,7 @@ def validation_figures(val: Validation) -> list[str]:
             ax_v.set_ylabel("speed (km/h)")
             ax_v.legend()
             ax_p.plot(s, val.on_course.power_w, color="0.4", lw=0.6, label="ride")
-            ax_p.plot(plan.s_m / 1000, np.clip(plan.power_w, 0, None), lw=1, label="plan")
+            ax_p.plot(plan.s_m / 1000, plan.pedal_power_w, lw=1, label="plan")
             ax_p.set_ylabel("power (W)")
             ax_p.set_xlabel("distance (km)")
             images.append(_png(fig))

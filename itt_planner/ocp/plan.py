@@ -108,6 +108,13 @@ class Plan:
     def n_nodes(self) -> int:
         return len(self.s_m)
 
+    @property
+    def pedal_power_w(self) -> np.ndarray:
+        """What the rider pedals at each node: `power_w` with braking as 0 W (a rider's
+        power meter never reads the brakes)."""
+        pedal: np.ndarray = np.clip(self.power_w, 0.0, None)
+        return pedal
+
     def at(self, name: str, s_m: float | np.ndarray) -> np.ndarray:
         """Linear interpolation of one plan array (by attribute name) at `s_m`."""
         values: np.ndarray = np.interp(s_m, self.s_m, getattr(self, name))

@@ -68,7 +68,7 @@ def tightest_corners(course: Course, count: int) -> list[Corner]:
 def average_power_w(plan: Plan) -> float:
     """Time-weighted average pedalling power of a plan (braking counts as zero)."""
     dt = np.diff(plan.t_s)
-    pedal = np.clip(plan.power_w[:-1], 0.0, None)
+    pedal = plan.pedal_power_w[:-1]
     return float(np.sum(pedal * dt) / np.sum(dt)) if np.sum(dt) > 0 else math.nan
 
 

@@ -255,10 +255,11 @@ class RideRecorder:
             for path, value, scale in (
                 (paths.POWER_TARGET, advice.target_power_w, 1.0),
                 (paths.W_PRIME_FINISH, advice.w_prime_finish_j, 1e-3),
-                (paths.SOLVE_TIME_REPLAN, advice.solve_time_s, 1e3),
             ):
                 if math.isfinite(value):
                     rec.log(path, rr.Scalars(value * scale))
+            if advice.solve_time_s > 0:  # 0: on the plan, held or finished (no solve)
+                rec.log(paths.SOLVE_TIME_REPLAN, rr.Scalars(advice.solve_time_s * 1e3))
             lat_lon = np.column_stack([advice.line_lat_deg, advice.line_lon_deg])
             xyz = np.column_stack([advice.line_x_m, advice.line_y_m, advice.line_z_m + 0.1])
             ok = np.isfinite(lat_lon).all(axis=1) & np.isfinite(xyz).all(axis=1)

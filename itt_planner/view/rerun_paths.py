@@ -27,12 +27,14 @@ Entities (display units, at the edge: km/h, degrees, kJ, ms, named in the path):
     world/rider                 Points3D: estimated position of the rider
     world/path/seg_NNNN         LineStrips3D: the rider's estimated path (a point per 5 m)
     plots/power/{actual,target,critical,plan}          W ("critical": the CP in use, from
-                                                       each advice: refits show as steps)
+                                                       each advice: refits show as steps;
+                                                       "plan": its pedalling, braking as 0)
     plots/speed_kmh/{actual,plan}                      km/h
     plots/w_prime_kj/{actual,finish,plan}              kJ ("finish": projected at the line)
     plots/lean_deg/plan                                deg
     plots/friction_use/plan                            C16 left-hand side (<= 1)
-    plots/solve_time_ms/replan                         ms per receding-horizon solve
+    plots/solve_time_ms/replan                         points: ms per receding-horizon
+                                                       solve (none on the plan)
     elevation/profile           Scalars on distance_m: z(s) of the course
     elevation/rider             Scalars (points): z at the rider's position
     log/advice                  TextLog: advice changes (target, cue, status, fallback)

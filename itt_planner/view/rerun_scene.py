@@ -34,7 +34,9 @@ PURPLE = (160, 80, 220)
 
 #: (entity, legend name, colour, plan array, scale from SI to display unit)
 PLAN_SERIES = (
-    (paths.POWER_PLAN, "planned", BLUE, "power_w", 1.0),
+    # Pedalling only: the plan's braking as power (to -2 kW before a hairpin) would squash
+    # the pedalled 0-1 kW that the rider and the target are compared on.
+    (paths.POWER_PLAN, "planned (pedalling)", BLUE, "pedal_power_w", 1.0),
     (paths.SPEED_PLAN, "planned", BLUE, "v_mps", MPS_TO_KMH),
     (paths.W_PRIME_PLAN, "planned", BLUE, "w_prime_j", 1e-3),
     (paths.LEAN_PLAN, "planned", BLUE, "phi_rad", math.degrees(1.0)),
@@ -48,7 +50,6 @@ LINE_STYLES = (
     (paths.SPEED_ACTUAL, "actual", ORANGE),
     (paths.W_PRIME_ACTUAL, "actual", ORANGE),
     (paths.W_PRIME_FINISH, "projected at finish", PURPLE),
-    (paths.SOLVE_TIME_REPLAN, "solve time", PURPLE),
     (paths.ELEVATION_PROFILE, "course", GREY),
 )
 
@@ -112,6 +113,9 @@ def log_course(rec: rr.RecordingStream, course: Course, rider: Rider, plan: Plan
     )
     rec.log(paths.ELEVATION_RIDER, rr.SeriesPoints(names="rider", colors=RED,
                                                    marker_sizes=4.0), static=True)
+    # Points: a solve is an event (advice on the plan solves nothing), not a signal.
+    rec.log(paths.SOLVE_TIME_REPLAN, rr.SeriesPoints(names="solve time", colors=PURPLE,
+                                                     marker_sizes=2.0), static=True)
     for path, name, colour in LINE_STYLES:
         rec.log(path, rr.SeriesLines(names=name, colors=colour), static=True)
     cp = rider.critical_power_w

@@ -2,7 +2,7 @@
 
 `RerunSink.parse` reads the CLI / node-parameter string; `open_recording` makes an
 explicit `rr.RecordingStream` (never Rerun's global one, so a live node and an offline
-review can record side by side) wired to that sink, with the default blueprint.
+review can record side by side) wired to that sink.
 
     file:PATH.rrd       save to a file (the review recording)
     spawn               start a native viewer and stream to it
@@ -24,7 +24,6 @@ from urllib.parse import quote
 import rerun as rr
 
 from itt_planner.errors import IttError
-from itt_planner.view.rerun_blueprint import default_blueprint
 
 log = logging.getLogger(__name__)
 
@@ -86,7 +85,10 @@ class RerunSink:
 
 def open_recording(sinks: RerunSink | Sequence[RerunSink], *, app_id: str = "itt_planner",
                    recording_id: str | None = None) -> rr.RecordingStream:
-    """A new recording stream tee'd to every sink, carrying the default blueprint.
+    """A new recording stream tee'd to every sink. It carries no layout: the ride's is sent
+    with its course (`rerun_scene.log_course`, the map zoomed to it). A default layout
+    sent here as well was the one Rerun's web viewer showed from a saved file (the map at
+    zoom 13 whatever the course).
 
     Several sinks serve the usual review-while-live case: watch the ride in a viewer
     (`spawn`, `connect`, `serve`) and keep the `.rrd` for afterwards (`file`), from one
@@ -122,7 +124,7 @@ def open_recording(sinks: RerunSink | Sequence[RerunSink], *, app_id: str = "itt
                 server = rr.GrpcServerSink(port=sink.grpc_port)
                 servers.append((sink, server))
                 targets.append(server)
-        rec.set_sinks(*targets, default_blueprint=default_blueprint())
+        rec.set_sinks(*targets)
         for sink, server in servers:
             rr.serve_web_viewer(web_port=sink.web_port, open_browser=False, connect_to=server.uri)
             log.info("Rerun web viewer at %s (gRPC %s)", sink.web_viewer_url, server.uri)

@@ -8,10 +8,10 @@ the image (cropped to the viewer). By default the recording is a synthetic ride 
 in-process; ITT_SCREENSHOT_RRD=ride.rrd serves a saved recording instead, compacted first
 (`rerun rrd optimize`: the viewer ingests a few large chunks much faster than thousands
 of small ones) and served by the `rerun` CLI. bench/rerun_viewer.png in the README is a
-full demo replay, made so:
+full replay of the demo ride (`make demo`'s, with solve times measured), made so:
 
-    .venv/bin/itt-planner replay bags/typical_verona-like.mcap --course verona-like \
-        --rider typical --rrd /tmp/review.rrd --replan-period 5 --live-timing
+    .venv/bin/itt-planner replay bags/typical_verona-like_cp-overestimated.mcap \
+        --course verona-like --rider typical --rrd /tmp/review.rrd --live-timing
     ITT_SCREENSHOT_RRD=/tmp/review.rrd ITT_SCREENSHOT_WAIT_S=100 \
         ITT_SCREENSHOT_OUT=bench/rerun_viewer.png .venv/bin/python -m pytest \
         tests/view/test_viewer_screenshot.py -m screenshot
