@@ -148,10 +148,12 @@ def ride_summary(trace: RideTrace, plan: Plan, course: Course,
 
 def draw_overview(fig: Figure | SubFigure, plan: Plan, course: Course,
                   rider: Rider | None) -> None:
-    """Power, speed and elevation against distance, corners shaded."""
+    """Power (what the rider pedals: the plan's braking, to -2 kW before a hairpin, would
+    squash the pedalled 0-1 kW; the speed shows it), speed and elevation against
+    distance, corners shaded."""
     ax_p, ax_v, ax_z = fig.subplots(3, 1, sharex=True, height_ratios=[3, 3, 2])
     km = plan.s_m / 1000
-    ax_p.plot(km, plan.power_w, color="tab:blue", lw=1.2, label="planned power")
+    ax_p.plot(km, plan.pedal_power_w, color="tab:blue", lw=1.2, label="planned power")
     _critical_power(ax_p, rider)
     ax_p.set_ylabel("power (W)")
     ax_p.legend(loc="upper right", fontsize="small")
@@ -165,10 +167,11 @@ def draw_overview(fig: Figure | SubFigure, plan: Plan, course: Course,
 
 def draw_ride_overview(fig: Figure | SubFigure, ride: RideTrace, plan: Plan, course: Course,
                        rider: Rider | None) -> None:
-    """The ride on top of the plan against distance: power, speed, W' and elevation."""
+    """The ride on top of the plan against distance: power (pedalled, as in
+    `draw_overview`), speed, W' and elevation."""
     ax_p, ax_v, ax_w, ax_z = fig.subplots(4, 1, sharex=True, height_ratios=[3, 3, 2, 2])
     km = plan.s_m / 1000
-    ax_p.plot(km, plan.power_w, color="tab:blue", lw=1.2, label="planned power")
+    ax_p.plot(km, plan.pedal_power_w, color="tab:blue", lw=1.2, label="planned power")
     ax_p.step(ride.advice_s_m / 1000, ride.target_power_w, where="post", color="tab:green",
               lw=1.0, label="target power (advice)")
     ax_p.plot(ride.power_s_m / 1000, ride.power_w, color=ACTUAL, lw=0.6, alpha=0.9,
@@ -195,7 +198,7 @@ def draw_ride_overview(fig: Figure | SubFigure, ride: RideTrace, plan: Plan, cou
     _mark_belief_events((ax_p, ax_v, ax_w), events)
     fallbacks = int(ride.fallback.sum())
     refits = sum(e.kind == "refit" for e in events)
-    fig.suptitle(f"{course.name}: ride (orange) against the plan ({plan.model}, blue); "
+    fig.suptitle(f"{course.name}: ride (orange) against the plan ({plan.model}, blue)\n"
                  f"{len(ride.fallback)} advice, {fallbacks} fallbacks; {refits} CP refits "
                  f"(red dots), {len(events) - refits} plans adopted (blue dots); "
                  "corners shaded")
