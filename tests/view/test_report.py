@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from matplotlib.figure import Figure
 from PIL import Image
 from support.synthetic_ride import RIDER, make_course, make_plan
 from typer.testing import CliRunner
@@ -30,6 +31,7 @@ from itt_planner.ocp.plan import Plan
 from itt_planner.session.config import SessionConfig
 from itt_planner.session.replay import replay_ride
 from itt_planner.view.report import (
+    draw_overview,
     render_html,
     ride_summary,
     rider_from_plan,
@@ -67,6 +69,17 @@ def test_html_is_self_contained_with_overview_and_corner(plan: Plan, course: Cou
         pixels = np.asarray(image.convert("L"), dtype=float)
         assert pixels.std() > 10  # figures, not blank canvases
     assert "critical power w" in page and "440" in page
+
+
+def test_overview_power_is_pedalled(plan: Plan, course: Course) -> None:
+    """The plan brakes into the corner (negative power at the contact point); the power
+    panel draws what is pedalled, so its axis stays on the rider's 0-1 kW."""
+    fig = Figure()
+    draw_overview(fig, plan, course, RIDER)
+    ax_power = fig.axes[0]
+    drawn = ax_power.get_lines()[0].get_ydata()
+    assert plan.power_w.min() < -1000.0 and np.min(drawn) == 0.0
+    assert ax_power.get_ylim()[0] > -100.0
 
 
 def test_summary_figures(plan: Plan, course: Course) -> None:
