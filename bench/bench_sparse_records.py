@@ -24,7 +24,8 @@ from itt_planner.calibration import CalibrationOptions, calibrate
 from itt_planner.course.fit import fit_course
 from itt_planner.course.geometry import Course
 from itt_planner.course.track_files import Recording, read_recording
-from itt_planner.live.estimate import EstimatorSettings, StateEstimator
+from itt_planner.live.estimate import StateEstimator
+from itt_planner.live.estimator_settings import EstimatorSettings
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.live.wprime_balance import WPrimeBalance
 from itt_planner.model.rider import Rider

@@ -200,7 +200,9 @@ def _read_tcx(path: Path, data: bytes) -> Recording:
     reader = TCXReader()
     xml = xml_text(data)
     # `read` takes a path, which it hands to ElementTree's `parse`: a file object works too.
-    ex = reader.read(io.BytesIO(xml))
+    # All trackpoints: its default drops those before the first fix and after the last,
+    # and their power and speed with them (a head unit that found no GPS for minutes).
+    ex = reader.read(io.BytesIO(xml), only_gps=False)
     tps = ex.trackpoints or []
     if not tps:
         root = ET.fromstring(xml)

@@ -2,7 +2,8 @@
 
 from .advice import Advice, Cue, Diagnostic, Level
 from .engine import EngineSettings, PacingEngine
-from .estimate import EstimatorSettings, StateEstimator
+from .estimate import StateEstimator
+from .estimator_settings import EstimatorSettings
 from .samples import GpsFix, PowerReading, Sample, WheelSpeed
 from .wprime_balance import WPrimeBalance
 

@@ -34,7 +34,8 @@ from itt_planner.live.advice import Advice, Cue, Diagnostic
 from itt_planner.live.advice_shaping import AdviceShaper, ShapingSettings
 from itt_planner.live.course_replan import CourseReplanSettings
 from itt_planner.live.cp_monitor import CpMonitor, CpMonitorSettings, Refit
-from itt_planner.live.estimate import EstimatorSettings, StateEstimator
+from itt_planner.live.estimate import StateEstimator
+from itt_planner.live.estimator_settings import EstimatorSettings
 from itt_planner.live.health import EngineCounts, input_diagnostics, solver_diagnostic
 from itt_planner.live.horizon_step import HorizonStep
 from itt_planner.live.plan_in_force import PlanInForce

@@ -9,9 +9,16 @@ globally. Without GPS (tunnels, dropouts) the filter dead-reckons on wheel speed
 variance grows so the returning fixes are accepted and pull it back. Without wheel speed
 the fixes alone measure `v`; without either, `v` decays (a rider stopping).
 
-The published `s` never moves backwards: it follows the filter with a bounded forward
-catch-up and, when the filter falls behind it, slows down instead of jumping back. On a
-closed loop the map matching wraps around the seam; progress is cumulative and the
+The published `s` does not move backwards: it follows the filter with a bounded forward
+catch-up and, when the filter falls behind it, slows down instead of jumping back. One
+exception: a first fix away from the start places the rider where it matches, but until
+the rider has ridden `confirm_m` on from there, that placement is a guess; a
+re-acquisition meanwhile looks for the start first and, found far behind
+(`reacquire_back_m`), moves the published `s` back to it (a ride logged from before the
+start, whose first fixes matched the road the course finishes on, was otherwise advised
+"finished" for the rest of the ride: the GoldenCheetah Boise ride, 2026-12-04).
+
+On a closed loop the map matching wraps around the seam; progress is cumulative and the
 published `s_m` is clipped at the course length (the ride is done there).
 
 Power readings go to the engine's W' model (`wprime_balance.WPrimeBalance`, the one
@@ -31,82 +38,21 @@ import logging
 import math
 from collections import Counter
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from itt_planner.course.geometry import Course
+from itt_planner.live.estimator_settings import EstimatorSettings
 from itt_planner.live.map_match import MapMatcher, Match
 from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
 from itt_planner.live.wprime_balance import WPrimeBalance
 from itt_planner.model.state import RiderState
-from itt_planner.model.wprime import WPrimeModel
 
 log = logging.getLogger(__name__)
 
 #: A sensor's hook: takes a sample of its type, returns whether it was accepted.
 Hook = Callable[[Any], bool]
-
-
-@dataclass(frozen=True)
-class EstimatorSettings:
-    """Noise levels, gates and limits of the estimator (SI units).
-
-    Attributes:
-        gps_std_m: GPS 1-sigma used when a fix carries none (bike GPS: 3-5 m).
-        speed_std_mps: wheel-speed noise.
-        accel_std_mps2: process noise, the rider's unmodelled acceleration.
-        odometry_drift: dead-reckoning error as a fraction of the distance travelled
-            (wheel circumference error, the wheel's path is not the centre line).
-        gate_sigma: a GPS `s` innovation beyond this many sigmas is an outlier ...
-        gate_floor_m: ... unless it is smaller than this (ordinary GPS noise always passes).
-        off_course_m: a fix farther than this beyond the road edge is off the course.
-        search_margin_m: the local search window is predicted `s` +/- (this + 4 sigma).
-        lost_after: this many consecutive rejected fixes trigger a global re-acquisition.
-        speed_stale_s, gps_stale_s, speed_decay_s: with neither a wheel speed nor a fix
-            this recent, the speed decays with this time constant instead of running on.
-        power_hold_s: a reading holds this long at most (smart recording: 1-8 s steps), then 0.
-        max_power_w: readings above this are spikes.
-        max_speed_mps: wheel speeds above this are glitches.
-        max_lag_s: a sample older than the filter time by more than this is dropped
-            (samples of different topics may interleave slightly out of order).
-        catchup_mps: how fast the published `s` may catch up with the filter, beyond
-            the speed itself.
-        lateral_tau_s: time constant of the lateral offset low-pass: bike GPS cannot
-            place a rider within a lane (its 3-5 m error is a slowly wandering bias), so
-            `n` is only a slow, conservative estimate ...
-        lateral_edge_m: ... kept this far inside the road edges (a noisy `n` at the
-            edge would make the planner brake for a road edge the rider is not at).
-        global_window_m: a local search window wider than this (after a long gap)
-            becomes a global search that prefers the predicted `s`.
-        start_reach_m: a first fix (or a re-acquisition before this far along) this near
-            the course's start is at the start, not at a pass elsewhere (a loop's finish).
-        wprime_model: E9 variant.
-    """
-
-    gps_std_m: float = 4.0
-    speed_std_mps: float = 0.3
-    accel_std_mps2: float = 0.7
-    odometry_drift: float = 0.03
-    gate_sigma: float = 4.0
-    gate_floor_m: float = 20.0
-    off_course_m: float = 30.0
-    search_margin_m: float = 60.0
-    lost_after: int = 5
-    speed_stale_s: float = 3.0
-    gps_stale_s: float = 10.0
-    speed_decay_s: float = 2.0
-    power_hold_s: float = 10.0
-    max_power_w: float = 3000.0
-    max_speed_mps: float = 35.0
-    max_lag_s: float = 2.0
-    catchup_mps: float = 5.0
-    lateral_tau_s: float = 10.0
-    lateral_edge_m: float = 1.0
-    global_window_m: float = 2000.0
-    start_reach_m: float = 50.0
-    wprime_model: WPrimeModel = WPrimeModel.SKIBA
 
 
 class StateEstimator:
@@ -133,6 +79,8 @@ class StateEstimator:
         self._s_pub = 0.0
         self._n = 0.0
         self._start_s: float | None = None
+        # Where the first fix placed the rider, until the rider has ridden on from there.
+        self._placed_s: float | None = None
         self._last_stamp: dict[str, float] = {}
         self._speed_t = -math.inf  # stamp of the last accepted wheel speed
         self._rejected_run: list[GpsFix] = []
@@ -210,6 +158,7 @@ class StateEstimator:
             KeyError: a field of the snapshot is missing.
         """
         self._start_s = snap["start_stamp_s"]
+        self._placed_s = None  # the saved progress was ridden, not guessed
         self._s_pub = float(snap["s_m"])
         self._x = np.array([self._s_pub, 0.0])
         self._p = np.diag([self.settings.search_margin_m ** 2, 4.0])
@@ -318,6 +267,7 @@ class StateEstimator:
         v_std = 2.0 if stamp - self._speed_t <= self.settings.speed_stale_s else 8.0
         self._p = np.diag([std * std, v_std ** 2])
         self._s_pub = match.s_m
+        self._placed_s = match.s_m
         self._n = match.n_m
         self._gps_t = stamp
         self.counters["gps_accepted"] += 1
@@ -381,9 +331,13 @@ class StateEstimator:
     def _reacquire(self, x: float, y: float, std: float) -> bool:
         """Lost: several fixes in a row rejected. Match the latest one globally."""
         self.counters["gps_reacquire_attempts"] += 1
-        reach = self.settings.start_reach_m  # not yet away from the start: at the start
-        match = ((self._matcher.start_match(x, y, reach) if self._s_pub < reach else None)
-                 or self._matcher.nearest_pass(x, y, prefer_s=self._x[0]))
+        st = self.settings
+        # Not yet away from the start, or not yet ridden on from where the first fix
+        # placed the rider (module docstring): the start first.
+        unproven = self._placed_s is not None and self._s_pub < self._placed_s + st.confirm_m
+        at_start = self._s_pub < st.start_reach_m or unproven
+        match = ((self._matcher.start_match(x, y, st.start_reach_m) if at_start else None)
+                 or self._matcher.nearest_pass(x, y, prefer_s=0.0 if unproven else self._x[0]))
         if match is None:
             return self._reject("gps_off_course", "lost, no course point near the fix")
         log.warning("estimator: lost for %d fixes, re-acquired at s=%.0f m (filter had %.0f m)",
@@ -391,9 +345,17 @@ class StateEstimator:
         self.counters["gps_reacquired"] += 1
         self._rejected_run.clear()
         self._x[0] = match.s_m
-        # The old estimate was wrong, not noisy: jump forward now rather than catch up.
-        # (Backwards, the published s still never moves back: it slows until passed.)
-        self._s_pub = max(self._s_pub, match.s_m)
+        # The old estimate was wrong, not noisy: jump forward now rather than catch up;
+        # backward only from a first placement not yet ridden on, when far behind it
+        # (otherwise the published s slows until passed: a rider who rode there did).
+        if unproven and match.s_m < self._s_pub - st.reacquire_back_m:
+            log.warning("estimator: re-acquired %.0f m behind the published s=%.0f m, where "
+                        "the first fix placed the rider: progress goes back to s=%.0f m",
+                        self._s_pub - match.s_m, self._s_pub, match.s_m)
+            self.counters["gps_reacquired_back"] += 1
+            self._s_pub = match.s_m
+        else:
+            self._s_pub = max(self._s_pub, match.s_m)
         self._p[0, 0] = std * std
         self._p[0, 1] = self._p[1, 0] = 0.0
         self._n = match.n_m

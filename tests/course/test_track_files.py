@@ -139,6 +139,22 @@ def _strava_tcx(n: int) -> str:
             + "</Track></Lap></Activity></Activities></TrainingCenterDatabase>")
 
 
+def test_tcx_keeps_trackpoints_before_the_first_fix(tmp_path: Path) -> None:
+    """A head unit that found no GPS for its first minute still logged power and speed:
+    those trackpoints are read (tcxreader's default drops them; an Edge 705 file of
+    GoldenCheetah's tests lost 1,378 of its 1,439 so, with a 198 s duration for 7,687 s)."""
+    text = _strava_tcx(50)
+    for i in range(10):  # the first 10 trackpoints without their fix
+        start = text.index("<Position>", text.index(f":{i:02d}Z</Time>"))
+        text = text[:start] + text[text.index("</Position>", start) + len("</Position>"):]
+    path = tmp_path / "late_fix.tcx"
+    path.write_text(text)
+    rec = read_recording(path)
+    assert len(rec) == 50 and rec.time_s is not None and rec.power_w is not None
+    assert int(np.isnan(rec.lat_deg).sum()) == 10 and rec.power_w[0] == 250
+    assert rec.time_s[-1] - rec.time_s[0] == 49
+
+
 def test_strava_exports_leading_spaces_and_gzip(tmp_path: Path) -> None:
     # Strava's TCX (and some of its GPX) start with spaces before `<?xml`, which XML
     # forbids and ElementTree refuses; its bulk export gzips the files.

@@ -31,7 +31,8 @@ from itt_planner.live.advice_shaping import (
 from itt_planner.live.course_replan import CourseReplanSettings
 from itt_planner.live.cp_monitor import CpMonitor, CpMonitorSettings
 from itt_planner.live.engine import EngineSettings, PacingEngine
-from itt_planner.live.estimate import EstimatorSettings, StateEstimator
+from itt_planner.live.estimate import StateEstimator
+from itt_planner.live.estimator_settings import EstimatorSettings
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.live.wprime_balance import WPrimeBalance
 from itt_planner.ocp.horizon import HorizonPlanner

@@ -12,7 +12,8 @@ import pytest
 from itt_planner.course.fit import fit_course
 from itt_planner.course.geometry import Course
 from itt_planner.course.track_files import read_recording
-from itt_planner.live.estimate import EstimatorSettings, StateEstimator
+from itt_planner.live.estimate import StateEstimator
+from itt_planner.live.estimator_settings import EstimatorSettings
 from itt_planner.live.samples import GpsFix, PowerReading, Sample, WheelSpeed
 from itt_planner.live.wprime_balance import WPrimeBalance
 from itt_planner.model.rider import PRESETS
@@ -311,3 +312,38 @@ def test_closed_loop_wraps_into_laps() -> None:
     assert np.diff(published).min() >= 0.0
     assert published[-1] == pytest.approx(length)
     assert est.distance_m == pytest.approx(v * (len(published) - 1), abs=10.0)
+
+
+def test_ride_logged_from_before_the_start_is_not_held_at_the_finish() -> None:
+    """A ride logged from before the start of a loop (the roll-out to the start line on the
+    road the course finishes on): its first fixes match the course's last stretch, 150 m
+    before the finish, and the rider rides away from the finish. When the rider turns onto
+    the start, the fixes no longer match there: re-acquired at the start, progress goes
+    back to it (the GoldenCheetah Boise ride was advised "finished" for 90 % of it)."""
+    from itt_planner.course.geometry import Course, GeoOrigin
+
+    u = np.linspace(0.0, 2 * np.pi, 800, endpoint=False)
+    x, y = 300.0 * np.cos(u) - 300.0, 200.0 * np.sin(u)  # an ellipse starting at (0, 0)
+    loop = Course.from_centerline("loop", np.append(x, x[0]), np.append(y, y[0]),
+                                  np.zeros(801), origin=GeoOrigin(45.0, 11.0, 0.0),
+                                  closed_loop=True)
+    est = _estimator(loop)
+    length, t = loop.length_m, 0.0
+
+    def fix(s_m: float) -> GpsFix:
+        lat, lon, alt = (float(a) for a in loop.to_geodetic(*loop.enu_at(s_m % length, 0.0)))
+        return GpsFix(t, lat, lon, alt)
+
+    # The roll-out: from 150 m before the finish back along the course, at 8 m/s, then
+    # around the start area to the start line (the last 20 s: fixes 60 m before it).
+    for k in range(10):
+        t = float(k)
+        est.on_gps(fix(length - 150.0 - 8.0 * k))
+    assert _at(est, t).s_m > length - 160.0  # taken for the finish straight
+    for k in range(10, 40):  # the race: from the start line on, forward at 12 m/s
+        t = float(k)
+        est.on_gps(fix(12.0 * (k - 10)))
+    assert est.counters["gps_reacquired_back"] == 1
+    state = _at(est, t)
+    assert state.s_m == pytest.approx(12.0 * 29, abs=40.0)
+    assert state.s_m < length - 200.0  # racing, not finished
