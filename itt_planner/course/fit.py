@@ -158,8 +158,8 @@ def fit_course(rec: Recording, settings: FitSettings = FitSettings(),
     gap_rows, gap_warnings = gap_report(np.column_stack([track.x_m, track.y_m]), None if rec.time_s
                                         is None else np.asarray(rec.time_s, float)[track.index],
                                         s_fix, track.stamped)
-    build = {"trim": trim_report, "elevation": elevation, "road_width": width_report,
-             "gaps": gap_rows, "warnings": list(elevation["warnings"]) + gap_warnings}
+    build = {"trim": trim_report, "elevation": elevation, "road_width": width_report, "gaps":
+             gap_rows, "warnings": trim.warnings() + list(elevation["warnings"]) + gap_warnings}
     return Course.from_centerline(
         rec.path.name.split(".")[0], x, y, z, origin=track.origin,
         closed_loop=track.closed_loop, ds_m=settings.ds_m, theta_rad=theta, kappa_per_m=kappa,

@@ -50,6 +50,9 @@ RUNOUT_M = 500.0
 START_MATCH_M = 30.0
 #: The ride passes a route's start / finish within this distance (m).
 ROUTE_MATCH_M = 50.0
+#: A heuristic cut longer than this (m) is a warning, not only a note: a guess that
+#: drops kilometres of the ride (a training ride's first U-turn) must be seen.
+CUT_WARN_M = 1000.0
 
 
 @dataclass(frozen=True)
@@ -126,6 +129,20 @@ class TrimReport:
                 "finish_elapsed_s": r(self.finish_elapsed_s),
                 "cut_before_m": r(self.start_m),
                 "cut_after_m": r(self.ride_length_m - self.finish_m), "notes": list(self.notes)}
+
+    def warnings(self) -> list[str]:
+        """The heuristic cuts longer than `CUT_WARN_M` (overrides and a route are meant)."""
+        out = []
+        if self.start_method == "u-turn" and self.start_m > CUT_WARN_M:
+            out.append(f"the first {self.start_m / 1000:.2f} km of the ride were cut as the "
+                       "roll-out before the start (a U-turn there): if the race started "
+                       "earlier, pass --start (--start 0 keeps it all)")
+        cut_after = self.ride_length_m - self.finish_m
+        if self.finish_method == "u-turn" and cut_after > CUT_WARN_M:
+            out.append(f"the last {cut_after / 1000:.2f} km of the ride were cut as the ride "
+                       "back after the finish (a U-turn there): if the race went on, pass "
+                       "--finish (with the ride's length to keep it all)")
+        return out
 
 
 def trim_track(track: Track, rec: Recording, options: TrimOptions = TrimOptions()

@@ -22,7 +22,7 @@ from itt_planner.course.fit import CourseOptions, WidthStretch, fit_course
 from itt_planner.course.geometry import GPS_ROAD_WIDTH_M, Course
 from itt_planner.course.loader import load_course
 from itt_planner.course.track_files import read_recording
-from itt_planner.course.trim import Mark, TrimOptions, parse_mark
+from itt_planner.course.trim import CUT_WARN_M, Mark, TrimOptions, TrimReport, parse_mark
 from itt_planner.errors import CourseError
 
 LAT0, LON0 = 45.0, 11.0
@@ -102,6 +102,21 @@ def test_standing_start_and_post_finish_uturn(tmp_path: Path) -> None:
     assert all(a < 120 for a in big_turns(course)), big_turns(course)  # no 170 deg "corner"
     assert RACE_M < course.length_m < RACE_M + 400  # cut before the turn (the line: --finish)
     assert course.closed_loop is False
+
+
+def test_long_heuristic_cuts_are_warnings() -> None:
+    """A U-turn's cut of kilometres is a guess the user must see (GoldenCheetah's Boise
+    training ride lost its first 2.87 km to a U-turn, said only in the trim's notes); a
+    short run-out, an override or a route's cut is not."""
+    def report(start_m: float, finish_m: float, how: str) -> TrimReport:
+        return TrimReport(ride_length_m=40_000.0, start_m=start_m, finish_m=finish_m,
+                          start_method=how, finish_method=how)
+    [first, last] = report(2867.0, 37_000.0, "u-turn").warnings()
+    assert "first 2.87 km" in first and "--start" in first
+    assert "last 3.00 km" in last and "--finish" in last
+    assert report(CUT_WARN_M - 1, 40_000.0 - 400.0, "u-turn").warnings() == []
+    assert report(2867.0, 37_000.0, "override").warnings() == []
+    assert report(2867.0, 37_000.0, "route").warnings() == []
 
 
 def test_overrides_by_distance_and_time(tmp_path: Path) -> None:
