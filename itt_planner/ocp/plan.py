@@ -180,10 +180,17 @@ class CornerRow:
 
 def corner_table(plan: Plan, corners: tuple[Any, ...], lookback_m: float = 300.0
                  ) -> list[CornerRow]:
-    """One row per course corner (`course.Corner`): braking point, speeds, lean, time."""
+    """One row per course corner (`course.Corner`): braking point, speeds, lean, time.
+
+    The braking point is the start of the last braking run within `lookback_m` before the
+    apex and after the previous corner's apex (a corner taken without braking has none;
+    it did not inherit the braking of the corner before it)."""
     rows = []
+    prev_apex = -np.inf
     for c in corners:
-        before = (plan.s_m >= c.apex_s_m - lookback_m) & (plan.s_m <= c.apex_s_m)
+        before = ((plan.s_m >= max(c.apex_s_m - lookback_m, prev_apex))
+                  & (plan.s_m <= c.apex_s_m))
+        prev_apex = c.apex_s_m
         braking = before & (plan.w_n < 0)
         braking_s = None
         if np.any(braking):

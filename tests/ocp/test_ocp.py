@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -31,7 +32,7 @@ from itt_planner.ocp.analysis import compare_riders, longest_stretch
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.course_settings import OcpSettings, Start
 from itt_planner.ocp.guess import plan_guess
-from itt_planner.ocp.plan import Plan, corner_table, splits
+from itt_planner.ocp.plan import PLAN_ARRAYS, Plan, corner_table, splits
 from itt_planner.ocp.solver import PlanStatus
 
 
@@ -66,6 +67,21 @@ def test_corner_table_and_splits(hairpin_plan: Plan, tmp_path: Path) -> None:
     assert sum(r["split_s"] for r in sp) == pytest.approx(hairpin_plan.finish_time_s)
     back = Plan.load(hairpin_plan.save(tmp_path / "p.plan.npz"))
     assert back.finish_time_s == pytest.approx(hairpin_plan.finish_time_s)
+
+
+def test_corner_table_braking_point_is_each_corners_own() -> None:
+    """Two corners 150 m apart: the plan brakes for the first only. The second has no
+    braking point (it took the first's, 150 m before its apex, as its own)."""
+    s = np.arange(0.0, 600.0, 5.0)
+    arrays: dict[str, Any] = {name: np.zeros_like(s) for name in PLAN_ARRAYS}
+    arrays.update(s_m=s, t_s=s / 12.0, v_mps=np.full_like(s, 12.0),
+                  w_n=np.where((s >= 150.0) & (s < 200.0), -0.5, 0.3))
+    plan = Plan(model="3d", **arrays, solver_status="synthetic", iterations=0,
+                solve_time_s=0.0)
+    corners = tuple(SimpleNamespace(apex_s_m=a, entry_s_m=a - 20.0, exit_s_m=a + 20.0,
+                                    min_radius_m=30.0) for a in (220.0, 370.0))
+    first, second = corner_table(plan, corners)
+    assert first.braking_s_m == 150.0 and second.braking_s_m is None
 
 
 def test_steady_state_matches_power_balance() -> None:
