@@ -23,9 +23,10 @@ VALIDATE_MODELS = ["1d", "3d"]
 
 def _human(result: dict[str, Any]) -> str:
     if "plan_finish_time" in result:  # a ride
+        ridden = ("no power meter" if result["average_power_w"] is None
+                  else f"{result['average_power_w']:.0f} W average")
         head = (f"wrote {result['output']}: {result['course']} ride, finish "
-                f"{result['finish_time']} (plan {result['plan_finish_time']}), "
-                f"{result['average_power_w']:.0f} W average (plan "
+                f"{result['finish_time']} (plan {result['plan_finish_time']}), {ridden} (plan "
                 f"{result['plan_average_power_w']:.0f} W), {result['fallbacks']} fallbacks "
                 f"in {result['advice']} advice")
     else:

@@ -120,11 +120,13 @@ def ride_summary(trace: RideTrace, plan: Plan, course: Course,
                              else None),
         "ride_duration_s": round(trace.duration_s, 2),
         "distance_km": round(max(float(trace.advice_s_m.max()),
-                                 float(trace.power_s_m.max())) / 1000, 3),
-        # The meters report at a fixed rate, so the sample mean is the time average.
-        "average_power_w": round(float(trace.power_w.mean()), 1),
+                                 float(trace.power_s_m.max(initial=0.0))) / 1000, 3),
+        # The meters report at a fixed rate, so the sample mean is the time average
+        # (None: a ride without a power meter).
+        "average_power_w": (round(float(trace.power_w.mean()), 1) if trace.power_w.size
+                            else None),
         "plan_average_power_w": round(average_power_w(plan), 1),
-        "max_power_w": round(float(trace.power_w.max()), 1),
+        "max_power_w": round(float(trace.power_w.max()), 1) if trace.power_w.size else None,
         "min_w_prime_kj": round(float(trace.w_prime_now_j.min()) / 1000, 2),
         "plan_min_w_prime_kj": round(float(plan.w_prime_j.min()) / 1000, 2),
         "advice": len(trace.solver_status),
@@ -175,7 +177,7 @@ def draw_ride_overview(fig: Figure | SubFigure, ride: RideTrace, plan: Plan, cou
     ax_p.step(ride.advice_s_m / 1000, ride.target_power_w, where="post", color="tab:green",
               lw=1.0, label="target power (advice)")
     ax_p.plot(ride.power_s_m / 1000, ride.power_w, color=ACTUAL, lw=0.6, alpha=0.9,
-              label="actual power")
+              label="actual power" if ride.power_w.size else "actual power: no power meter")
     _critical_power(ax_p, rider)
     if np.isfinite(ride.cp_in_use_w).any():
         ax_p.step(ride.advice_s_m / 1000, ride.cp_in_use_w, where="post", color="tab:red",

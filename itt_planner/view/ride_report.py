@@ -95,7 +95,8 @@ def load_ride_trace(path: str | Path) -> RideTrace:
 
     Raises:
         RideLogError: the file is not a readable MCAP ride log (names the file).
-        IttError: the log has no power samples or no advice (not a replay output).
+        IttError: the log has no advice (not a replay output). A ride without a power
+            meter (GPS and speed only, which `replay` advises) has empty power arrays.
     """
     path = Path(path)
     reader = RideLogReader(path)
@@ -116,8 +117,6 @@ def load_ride_trace(path: str | Path) -> RideTrace:
         raise IttError(f"{path}: no advice in this log; the report of a ride needs a replay "
                        "output: run `itt-planner replay LOG --course C --rider R --out "
                        "OUT.mcap` and report OUT.mcap")
-    if not power:
-        raise IttError(f"{path}: no power samples on {registry.POWER.name()}")
     advice.sort(key=lambda a: a.stamp_s)
     state_t = np.array([a.state.stamp_s for a in advice])
     state_s = np.array([a.state.s_m for a in advice])

@@ -195,6 +195,20 @@ def test_ride_report_shows_refits_and_plan_adoptions(plan: Plan, course: Course)
     assert "belief changes</th><td>none<" in render_html(plan, course, RIDER, ride=steady)
 
 
+def test_ride_report_without_a_power_meter(plan: Plan, course: Course) -> None:
+    """A ride of GPS and speed only (which `replay` advises) gets its report: no power
+    figures, the target and the plan drawn (it was refused: "no power samples")."""
+    trace = belief_trace(course, plan)
+    none = np.zeros(0)
+    bare = RideTrace(**{**trace.__dict__, "power_t_s": none, "power_w": none,
+                        "power_s_m": none})
+    table = ride_summary(bare, plan, course, RIDER)
+    assert table["average_power_w"] is None and table["max_power_w"] is None
+    assert table["distance_km"] == pytest.approx(course.length_m / 1000, abs=0.01)
+    page = render_html(plan, course, RIDER, ride=bare)
+    assert len(embedded_images(page)) >= 1
+
+
 @pytest.fixture(scope="module")
 def replayed(tmp_path_factory: pytest.TempPathFactory) -> Replayed:
     """(replay output, plan cache, ride duration) of the typical rider's demo bag."""
