@@ -95,6 +95,11 @@ def build_engine(config: SessionConfig) -> PacingEngine:
     conditions = Conditions()
     if config.plan:
         plan = Plan.load(config.plan)
+        # The horizon plans in the wind, grip and air the plan was solved for (a plan
+        # solved in a 20 km/h wind was re-planned in still air).
+        saved = plan.meta.get("conditions", {})
+        conditions = Conditions(**{f.name: saved[f.name] for f in dataclasses.fields(Conditions)
+                                   if f.name in saved})
     else:
         plan = load_or_solve(course, rider, conditions, OcpSettings(), config.model,
                              cache_dir=Path(config.plan_cache))
