@@ -199,7 +199,7 @@ class Course:
             "source_sha256": self.source_sha256,
             "road_width_m": [round(float(w.min()), 2), round(float(w.max()), 2)],
             "build": self.build,
-            "warnings": list(self.build.get("warnings", [])),
+            "warnings": list(self.build.get("warnings", [])) + self._loop_warnings(),
             "corners": [
                 {"apex_s_m": round(c.apex_s_m, 1), "entry_s_m": round(c.entry_s_m, 1),
                  "exit_s_m": round(c.exit_s_m, 1), "min_radius_m": round(c.min_radius_m, 1),
@@ -207,6 +207,15 @@ class Course:
                 for c in self.corners
             ],
         }
+
+    def _loop_warnings(self) -> list[str]:
+        """A "corner" that turns a full circle or more is no road: GPS wandering while
+        the rider stood, or a loop ridden round a car park (a walk at an airport in
+        GoldenCheetah's tests made one of 779 deg at R 4.5 m, without a word)."""
+        return [f"a corner at {c.apex_s_m:.0f} m turns {math.degrees(c.angle_rad):.0f} deg "
+                f"(R {c.min_radius_m:.1f} m): a full circle or more is no road (GPS wander "
+                "while standing, or a loop ridden round); trim it off (--start/--finish) or "
+                "check the file" for c in self.corners if abs(c.angle_rad) >= 2 * math.pi]
 
     def laps(self, n: int) -> Course:
         """This closed loop ridden `n` times, as one course (a circuit time trial: the

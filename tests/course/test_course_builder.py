@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from itt_planner.course.builder import FAKE_ORIGIN, build_course, build_course_file
-from itt_planner.course.geometry import Course
+from itt_planner.course.geometry import Course, GeoOrigin
 from itt_planner.course.loader import load_course
 from itt_planner.errors import CourseError
+from itt_planner.sim import hairpin_course
 
 
 def test_arc_and_clothoid_geometry() -> None:
@@ -96,3 +97,17 @@ def test_bad_yaml_file_names_the_file(tmp_path: Path) -> None:
 def test_unknown_course_spec() -> None:
     with pytest.raises(CourseError, match="unknown course"):
         load_course("giro-2030")
+
+
+def test_a_full_circle_is_a_warning() -> None:
+    """A track that rides round a 6 m circle twice between two straights (GPS wandering
+    while standing does the same) makes a 720 deg "corner": `course info` says so; a
+    hairpin's 180 deg does not."""
+    a = np.linspace(0.0, 4 * math.pi, 400)
+    x = np.concatenate([np.linspace(-200.0, -1.0, 200), 6.0 * np.sin(a),
+                        np.linspace(1.0, 200.0, 200)])
+    y = np.concatenate([np.zeros(200), 6.0 - 6.0 * np.cos(a), np.zeros(200)])
+    loop = Course.from_centerline("loops", x, y, 0 * x, origin=GeoOrigin(45.0, 11.0, 0.0))
+    [warning] = loop.summary()["warnings"]
+    assert "turns 7" in warning and "no road" in warning
+    assert hairpin_course().summary()["warnings"] == []
