@@ -31,8 +31,9 @@ class EstimatorSettings:
         power_hold_s: a reading holds this long at most (smart recording: 1-8 s steps), then 0.
         max_power_w: readings above this are spikes.
         max_speed_mps: wheel speeds above this are glitches.
-        max_lag_s: a sample older than the filter time by more than this is dropped
-            (samples of different topics may interleave slightly out of order).
+        max_lag_s: a GPS fix or wheel speed older than the filter time by more than this
+            is dropped (samples of different topics may interleave slightly out of
+            order); a power reading is not (the W' balance has its own time axis).
         catchup_mps: how fast the published `s` may catch up with the filter, beyond
             the speed itself.
         lateral_tau_s: time constant of the lateral offset low-pass: bike GPS cannot

@@ -121,10 +121,8 @@ def ride_summary(trace: RideTrace, plan: Plan, course: Course,
         "ride_duration_s": round(trace.duration_s, 2),
         "distance_km": round(max(float(trace.advice_s_m.max()),
                                  float(trace.power_s_m.max(initial=0.0))) / 1000, 3),
-        # The meters report at a fixed rate, so the sample mean is the time average
-        # (None: a ride without a power meter).
-        "average_power_w": (round(float(trace.power_w.mean()), 1) if trace.power_w.size
-                            else None),
+        # Meters report at a fixed rate: the sample mean is the time average (None: none).
+        "average_power_w": round(float(trace.power_w.mean()), 1) if trace.power_w.size else None,
         "plan_average_power_w": round(average_power_w(plan), 1),
         "max_power_w": round(float(trace.power_w.max()), 1) if trace.power_w.size else None,
         "min_w_prime_kj": round(float(trace.w_prime_now_j.min()) / 1000, 2),
@@ -150,9 +148,8 @@ def ride_summary(trace: RideTrace, plan: Plan, course: Course,
 
 def draw_overview(fig: Figure | SubFigure, plan: Plan, course: Course,
                   rider: Rider | None) -> None:
-    """Power (what the rider pedals: the plan's braking, to -2 kW before a hairpin, would
-    squash the pedalled 0-1 kW; the speed shows it), speed and elevation against
-    distance, corners shaded."""
+    """Power (pedalled: the plan's braking, to -2 kW at a hairpin, squashed the 0-1 kW; the
+    speed shows it), speed and elevation against distance, corners shaded."""
     ax_p, ax_v, ax_z = fig.subplots(3, 1, sharex=True, height_ratios=[3, 3, 2])
     km = plan.s_m / 1000
     ax_p.plot(km, plan.pedal_power_w, color="tab:blue", lw=1.2, label="planned power")
@@ -169,8 +166,7 @@ def draw_overview(fig: Figure | SubFigure, plan: Plan, course: Course,
 
 def draw_ride_overview(fig: Figure | SubFigure, ride: RideTrace, plan: Plan, course: Course,
                        rider: Rider | None) -> None:
-    """The ride on top of the plan against distance: power (pedalled, as in
-    `draw_overview`), speed, W' and elevation."""
+    """The ride on the plan against distance: power (pedalled), speed, W', elevation."""
     ax_p, ax_v, ax_w, ax_z = fig.subplots(4, 1, sharex=True, height_ratios=[3, 3, 2, 2])
     km = plan.s_m / 1000
     ax_p.plot(km, plan.pedal_power_w, color="tab:blue", lw=1.2, label="planned power")
