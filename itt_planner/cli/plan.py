@@ -33,6 +33,11 @@ def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
 
     dt = np.diff(plan.t_s)
     mean_power = float(np.sum(plan.power_w[:-1] * dt) / max(float(np.sum(dt)), 1e-9))
+    # The 1D plan's corner speeds read like the 3D's: say that nothing limits them.
+    warnings = [] if plan.model != "1d" or not course.corners else [
+        (f"the 1D model has no corners: through the course's {len(course.corners)} corners "
+         f"(down to R {min(c.min_radius_m for c in course.corners):.0f} m) no grip or lean "
+         "limits its speed; --model 3d plans them")]
     return {
         "course": course.name, "model": plan.model,
         "finish_time_s": round(plan.finish_time_s, 2),
@@ -49,6 +54,7 @@ def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
                      else bool(plan.meta["verification"]["verified"])),
         "verification": plan.meta.get("verification"),
         "attempts": plan.meta.get("attempts", []),
+        "warnings": warnings,
         "corners": [
             {"apex_s_m": round(r.apex_s_m, 1), "min_radius_m": round(r.min_radius_m, 1),
              "braking_s_m": None if r.braking_s_m is None else round(r.braking_s_m, 1),
@@ -73,7 +79,7 @@ def _human(r: dict[str, Any]) -> str:
               f"lean {c['max_lean_deg']} deg, {c['time_s']} s" for c in r["corners"]]
     lines += [f"  {s['s_m'] / 1000:6.2f} km  {s['elapsed_s']:8.1f} s  (+{s['split_s']:.1f} s)"
               for s in r["splits"]]
-    return "\n".join(lines)
+    return "\n".join(lines + [f"warning: {w}" for w in r["warnings"]])
 
 
 @app.command("plan")

@@ -450,6 +450,9 @@ def test_plan_cli_allow_unconverged(tmp_path: Path) -> None:
     assert "allowed_unconverged" not in info
     assert info["verification"]["max_speed_error_mps"] < 0.3
     assert info["attempts"][0]["strategy"] == "cold"
+    # The bend's speed is limited by nothing in the 1D model: said, not left to be read.
+    [warning] = info["warnings"]
+    assert "1D model has no corners" in warning and "--model 3d" in warning
 
 
 def test_rider_cornering_limit_lowers_corner_speed() -> None:
