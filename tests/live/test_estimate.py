@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from itt_planner.course.fit import fit_course
-from itt_planner.course.geometry import Course
+from itt_planner.course.geometry import Course, GeoOrigin
 from itt_planner.course.track_files import read_recording
 from itt_planner.live.estimate import StateEstimator
 from itt_planner.live.estimator_settings import EstimatorSettings
@@ -290,16 +290,19 @@ def test_speed_from_gps_alone(data_file: Callable[[str], Path], every: str) -> N
     assert float(np.mean(np.abs(km_h))) < 2.0 and abs(float(np.mean(km_h))) < 0.3
 
 
+def _ellipse_loop() -> Course:
+    """A closed loop of ~1.6 km: an ellipse starting at (0, 0)."""
+    u = np.linspace(0.0, 2 * np.pi, 800, endpoint=False)
+    x, y = 300.0 * np.cos(u) - 300.0, 200.0 * np.sin(u)
+    return Course.from_centerline("loop", np.append(x, x[0]), np.append(y, y[0]),
+                                  np.zeros(801), origin=GeoOrigin(45.0, 11.0, 0.0),
+                                  closed_loop=True)
+
+
 def test_closed_loop_wraps_into_laps() -> None:
     """On a closed loop the match wraps around the seam: progress is cumulative (laps),
     and the published s stops at the finish (the course length)."""
-    from itt_planner.course.geometry import Course, GeoOrigin
-
-    u = np.linspace(0.0, 2 * np.pi, 800, endpoint=False)
-    x, y = 300.0 * np.cos(u) - 300.0, 200.0 * np.sin(u)  # an ellipse starting at (0, 0)
-    loop = Course.from_centerline("loop", np.append(x, x[0]), np.append(y, y[0]),
-                                  np.zeros(801), origin=GeoOrigin(45.0, 11.0, 0.0),
-                                  closed_loop=True)
+    loop = _ellipse_loop()
     est = _estimator(loop)
     v, length = 12.0, loop.length_m
     published = []
@@ -320,13 +323,7 @@ def test_ride_logged_from_before_the_start_is_not_held_at_the_finish() -> None:
     before the finish, and the rider rides away from the finish. When the rider turns onto
     the start, the fixes no longer match there: re-acquired at the start, progress goes
     back to it (the GoldenCheetah Boise ride was advised "finished" for 90 % of it)."""
-    from itt_planner.course.geometry import Course, GeoOrigin
-
-    u = np.linspace(0.0, 2 * np.pi, 800, endpoint=False)
-    x, y = 300.0 * np.cos(u) - 300.0, 200.0 * np.sin(u)  # an ellipse starting at (0, 0)
-    loop = Course.from_centerline("loop", np.append(x, x[0]), np.append(y, y[0]),
-                                  np.zeros(801), origin=GeoOrigin(45.0, 11.0, 0.0),
-                                  closed_loop=True)
+    loop = _ellipse_loop()
     est = _estimator(loop)
     length, t = loop.length_m, 0.0
 
