@@ -25,11 +25,10 @@ from support.real_data import RIDES, locate
 from itt_planner.calibration import CalibrationError, CalibrationOptions, calibrate
 from itt_planner.calibration.calibrate import CalibrationResult
 from itt_planner.calibration.physics_check import unmodelled_lines
-from itt_planner.calibration.ride_data import air_density_kgpm3
 from itt_planner.calibration.validate import validate_ride
 from itt_planner.course.geometry import Course
 from itt_planner.course.loader import load_course
-from itt_planner.model.conditions import Conditions
+from itt_planner.model.conditions import Conditions, air_density_kgpm3
 from itt_planner.model.rider import Rider
 from itt_planner.sim import simulate_ride
 

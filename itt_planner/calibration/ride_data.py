@@ -26,32 +26,14 @@ from itt_planner.logs.ride_import import (
     fix_steps_m,
     ridden_gaps,
 )
+from itt_planner.model.conditions import DEFAULT_TEMPERATURE_C, air_density_kgpm3
 
-#: Standard atmosphere (ICAO): sea-level pressure (Pa), lapse-rate exponent, scale.
-_P0_PA = 101_325.0
-_BARO_K_PER_M = 2.25577e-5
-_BARO_EXP = 5.25588
-#: Specific gas constant of dry air, J/(kg K).
-_R_DRY = 287.05
-#: Temperature used when neither the record nor the caller gives one (15 C, ISA).
-DEFAULT_TEMPERATURE_C = 15.0
 #: Shortest moving time any estimator accepts (s).
 MIN_MOVING_S = 600.0
 
 
 class CalibrationError(IttError):
     """A ride cannot be calibrated or validated; the message names the file and why."""
-
-
-def air_density_kgpm3(altitude_m: np.ndarray | float, temperature_c: np.ndarray | float
-                      ) -> np.ndarray:
-    """Dry-air density from the ISA pressure at `altitude_m` and the air temperature.
-
-    rho = p / (R T), p = p0 (1 - 2.25577e-5 h)^5.25588 (ISA troposphere).
-    """
-    h = np.asarray(altitude_m, float)
-    pressure = _P0_PA * (1.0 - _BARO_K_PER_M * h) ** _BARO_EXP
-    return pressure / (_R_DRY * (np.asarray(temperature_c, float) + 273.15))
 
 
 @dataclass(frozen=True, eq=False)

@@ -12,6 +12,7 @@ and warns on stderr.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 from typing import Any
@@ -35,9 +36,9 @@ def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
     mean_power = float(np.sum(plan.power_w[:-1] * dt) / max(float(np.sum(dt)), 1e-9))
     # The 1D plan's corner speeds read like the 3D's: say that nothing limits them.
     warnings = [] if plan.model != "1d" or not course.corners else [
-        (f"the 1D model has no corners: through the course's {len(course.corners)} corners "
-         f"(down to R {min(c.min_radius_m for c in course.corners):.0f} m) no grip or lean "
-         "limits its speed; --model 3d plans them")]
+        (f"the 1D model has no corners: through the course's {len(course.corners)} "
+         f"corner(s) (down to R {min(c.min_radius_m for c in course.corners):.0f} m) no "
+         "grip or lean limits its speed; --model 3d plans them")]
     return {
         "course": course.name, "model": plan.model,
         "finish_time_s": round(plan.finish_time_s, 2),
@@ -67,6 +68,23 @@ def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
     }
 
 
+def _air_warning(course: Any, assumed_kgpm3: float) -> list[str]:
+    """The course's own air (ISA at its mean altitude, 15 C) when it differs from the
+    density the plan assumed by more than 3 % (drag scales with it)."""
+    from itt_planner.model.conditions import (  # noqa: PLC0415
+        DEFAULT_TEMPERATURE_C,
+        air_density_kgpm3,
+    )
+
+    altitude = course.mean_altitude_m
+    own = float(air_density_kgpm3(altitude, DEFAULT_TEMPERATURE_C))
+    if abs(own / assumed_kgpm3 - 1.0) <= 0.03:
+        return []
+    return [(f"the plan assumes air at {assumed_kgpm3:.2f} kg/m^3; at the course's mean "
+             f"altitude, {altitude:.0f} m, it is {own:.2f} at {DEFAULT_TEMPERATURE_C:.0f} C "
+             f"(ISA): --air-density-kgpm3 {own:.2f} plans in it")]
+
+
 def _human(r: dict[str, Any]) -> str:
     lines = [(f"{r['course']} ({r['model']}): {r['finish_time_s']:.1f} s, "
               f"{r['mean_speed_kmh']} km/h, "
@@ -92,6 +110,10 @@ def plan_cli(
     wind_kmh: float = typer.Option(0.0, "--wind-kmh", help="Wind speed (km/h)."),
     wind_from_deg: float = typer.Option(0.0, "--wind-from-deg",
                                         help="Direction the wind blows FROM (deg, 0 = North)."),
+    air_density_kgpm3: float | None = typer.Option(
+        None, "--air-density-kgpm3",
+        help="Air density (kg/m^3); default the paper's 1.23 at any altitude (a warning "
+             "gives the course's own when it differs by over 3 %)."),
     max_time_s: float | None = typer.Option(
         None, "--max-time-s", help="Solver time budget (s); default scales with the course."),
     max_iter: int | None = typer.Option(
@@ -125,6 +147,8 @@ def plan_cli(
                              "(the 3D model chooses its own line)", status="invalid_input")
         built = load_course(course)
         conditions = Conditions.from_meteo(wind_kmh=wind_kmh, wind_from_deg=wind_from_deg, mu=mu)
+        if air_density_kgpm3 is not None:
+            conditions = dataclasses.replace(conditions, air_density_kgpm3=air_density_kgpm3)
         settings = OcpSettings(max_cpu_time_s=max_time_s, max_iter=max_iter)
         # With its solver point: a node given this plan (`--plan`) re-solves warm. On the
         # shortest line the point is the line's NLP's, so none is kept.
@@ -132,6 +156,8 @@ def plan_cli(
                   if line == "shortest" else
                   solve_keeping_point(built, load_rider(rider), conditions, settings, model))
         result = plan_summary(solved, built) | {"line": line}
+        if air_density_kgpm3 is None:
+            result["warnings"] += _air_warning(built, conditions.air_density_kgpm3)
         if not result["success"] and allow_unconverged:
             result["allowed_unconverged"] = True
         if output is not None:

@@ -152,6 +152,13 @@ class Course:
     def ds_m(self) -> float:
         return float(self.s_m[1] - self.s_m[0])
 
+    @property
+    def mean_altitude_m(self) -> float:
+        """Mean altitude above sea level: the origin's plus the profile's mean rise from
+        its start (a GPS course's `z_m` is the altitude itself, a built course's starts
+        at 0; both start at the origin's altitude)."""
+        return self.origin.alt_m + float(np.mean(self.z_m) - self.z_m[0])
+
     def at(self, field: str, s_m: float | np.ndarray) -> np.ndarray:
         """Linear interpolation of one of the arrays (by attribute name) at `s_m`."""
         return cast(np.ndarray, np.interp(s_m, self.s_m, getattr(self, field)))

@@ -10,11 +10,33 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from itt_planner.errors import RiderError
 from itt_planner.model.rider import PAPER_AIR_DENSITY_KGPM3
 from itt_planner.units import MPS_TO_KMH
 
 GRAVITY_MPS2 = 9.81
+
+#: Standard atmosphere (ICAO): sea-level pressure (Pa), lapse-rate exponent, scale.
+_P0_PA = 101_325.0
+_BARO_K_PER_M = 2.25577e-5
+_BARO_EXP = 5.25588
+#: Specific gas constant of dry air, J/(kg K).
+_R_DRY = 287.05
+#: Temperature used when neither the record nor the caller gives one (15 C, ISA).
+DEFAULT_TEMPERATURE_C = 15.0
+
+
+def air_density_kgpm3(altitude_m: np.ndarray | float, temperature_c: np.ndarray | float
+                      ) -> np.ndarray:
+    """Dry-air density from the ISA pressure at `altitude_m` and the air temperature.
+
+    rho = p / (R T), p = p0 (1 - 2.25577e-5 h)^5.25588 (ISA troposphere).
+    """
+    h = np.asarray(altitude_m, float)
+    pressure = _P0_PA * (1.0 - _BARO_K_PER_M * h) ** _BARO_EXP
+    return pressure / (_R_DRY * (np.asarray(temperature_c, float) + 273.15))
 
 
 @dataclass(frozen=True)

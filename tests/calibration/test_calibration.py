@@ -22,10 +22,10 @@ from itt_planner.calibration import (
     write_rider,
 )
 from itt_planner.calibration.calibrate import CalibrationResult, load_rides, write_setup_riders
-from itt_planner.calibration.ride_data import air_density_kgpm3, fill_sparse_records
+from itt_planner.calibration.ride_data import fill_sparse_records
 from itt_planner.course.geometry import Course
 from itt_planner.course.track_files import Recording
-from itt_planner.model.conditions import Conditions
+from itt_planner.model.conditions import Conditions, air_density_kgpm3
 from itt_planner.model.rider import load_rider
 from itt_planner.sim import simulate_ride, smart_recording
 

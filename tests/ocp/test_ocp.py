@@ -455,6 +455,27 @@ def test_plan_cli_allow_unconverged(tmp_path: Path) -> None:
     assert "1D model has no corners" in warning and "--model 3d" in warning
 
 
+def test_plan_cli_air_at_the_courses_altitude(tmp_path: Path) -> None:
+    """A course at 1,000 m: the plan in the paper's sea-level air says what the course's
+    own air is (ISA at 15 C, 1.09 kg/m^3, drag 12 % lower), and plans in it when told;
+    thinner air, a faster plan. At sea level (the same course at 0 m) nothing is said."""
+    high = _yaml(tmp_path / "high.yaml", {**SHORT_COURSE, "origin": {
+        "lat_deg": 45.0, "lon_deg": 11.0, "alt_m": 1000.0}})
+    low = _yaml(tmp_path / "low.yaml", {**SHORT_COURSE, "origin": {
+        "lat_deg": 45.0, "lon_deg": 11.0, "alt_m": 0.0}})
+    sea = json.loads(runner.invoke(app, ["plan", "--course", str(high), "--model", "1d",
+                                         "--json"]).stdout)
+    air = [w for w in sea["warnings"] if "air" in w]
+    assert len(air) == 1 and "--air-density-kgpm3 1.09" in air[0], sea["warnings"]
+    thin = json.loads(runner.invoke(app, ["plan", "--course", str(high), "--model", "1d",
+                                          "--air-density-kgpm3", "1.09", "--json"]).stdout)
+    assert not [w for w in thin["warnings"] if "air" in w]
+    assert thin["finish_time_s"] < sea["finish_time_s"]
+    at_sea = json.loads(runner.invoke(app, ["plan", "--course", str(low), "--model", "1d",
+                                            "--json"]).stdout)
+    assert not [w for w in at_sea["warnings"] if "air" in w]
+
+
 def test_rider_cornering_limit_lowers_corner_speed() -> None:
     """A rider's own lateral limit (issue 14 item 4) is C16's: corners slower, a_y within
     it everywhere; grip alone corners faster."""
