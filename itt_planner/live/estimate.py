@@ -358,7 +358,7 @@ class StateEstimator:
                         "the first fix placed the rider: progress goes back to s=%.0f m",
                         self._s_pub - match.s_m, self._s_pub, match.s_m)
             self.counters["gps_reacquired_back"] += 1
-            self._s_pub = match.s_m
+            self._s_pub = self._placed_s = match.s_m  # a new guess, to be ridden on again
         else:
             self._s_pub = max(self._s_pub, match.s_m)
         self._p[0, 0] = std * std

@@ -344,6 +344,13 @@ def test_ride_logged_from_before_the_start_is_not_held_at_the_finish() -> None:
     state = _at(est, t)
     assert state.s_m == pytest.approx(12.0 * 29, abs=40.0)
     assert state.s_m < length - 200.0  # racing, not finished
+    # Ridden on from the start, the placement is proven: a GPS glitch near the start no
+    # longer sends the rider back there (the first placement near the finish did).
+    for k in range(40, 46):
+        t = float(k)
+        est.on_gps(fix(20.0))
+    assert est.counters["gps_reacquired_back"] == 1
+    assert _at(est, t).s_m >= state.s_m
 
 
 def test_power_late_against_the_gps_still_counts(course: Course) -> None:
