@@ -69,11 +69,12 @@ def fill_gaps(u: np.ndarray, xy: np.ndarray, min_points: int = 5
     Returns the new parameters and points, and where each input point went in them.
     """
     span = np.diff(u)
-    chords = np.array([g.fix for g in find_gaps(xy)], int)
-    step_m, end_m = float(np.clip(np.median(span), 2.0, 20.0)), GAP_END_M
-    if len(u) < min_points:
-        chords, step_m = np.arange(len(span)), float(u[-1] - u[0]) / (min_points - 1)
-        end_m = 0.0
+    if len(u) < min_points:  # every chord, ends included
+        chords, step_m, end_m = (np.arange(len(span)), float(u[-1] - u[0]) / (min_points - 1),
+                                 0.0)
+    else:
+        chords = np.array([g.fix for g in find_gaps(xy)], int)
+        step_m, end_m = float(np.clip(np.median(span), 2.0, 20.0)), GAP_END_M
     fracs = {int(i): _fractions(float(span[i]), step_m, end_m) for i in chords}
     fracs = {i: f for i, f in fracs.items() if len(f)}
     extra = np.zeros(len(span), int)

@@ -5,7 +5,7 @@
 the rider delivers) and the full-course plan in force with its version
 (`plan_in_force.PlanInForce`, +1 at every adoption). Each `Advice` carries both, and its
 target power is shaped into what a rider can follow, with a pedal / coast / brake / climb cue
-(`advice_shaping`). `counts` sums up what was not used silently (fallbacks, re-solves, refits).
+(`advice_shaping`). `counts`: what was not used silently (fallbacks, failed re-solves, refits).
 
 Samples (`on_sample`, any type with an estimator hook) may arrive on any thread;
 `update(stamp_s)` replans when `replan_period_s` of STAMP time has passed since the last

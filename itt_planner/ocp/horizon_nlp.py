@@ -16,7 +16,6 @@ import casadi as ca
 import numpy as np
 
 from itt_planner.model.dynamics import SpatialModel, rk4_step
-from itt_planner.model.params import PARAMS, ROAD
 from itt_planner.ocp.horizon_rescue import HorizonRescue, rescue_enabled
 from itt_planner.ocp.horizon_settings import HorizonSettings
 from itt_planner.ocp.solver import horizon_solver
@@ -96,11 +95,9 @@ class HorizonNlp:
         """Whether each interval, integrated again with four times the substeps, ends
         within `resolve_tol_mps` + 5 % of its next node's speed: the solution does not
         ride the RK4 map beyond where it holds (`HorizonSettings.substeps`)."""
-        lay, n = self.tr.layout, self.settings.n_intervals
-        x, u, _ = lay.split(w)
-        road = p[: len(ROAD) * n].reshape(n, len(ROAD)).T  # CasADi's column-major layout
-        par = p[len(ROAD) * n: len(ROAD) * n + len(PARAMS)]
-        x_end = np.asarray(self._fine(x[:, :n], u, road, par)[0])
+        x, u, _ = self.tr.layout.split(w)
+        road, par = self.tr.road_and_params(p)
+        x_end = np.asarray(self._fine(x[:, :-1], u, road, par)[0])
         iv = self.model.index("v")
         v_next = x[iv, 1:]
         return bool(np.all(np.abs(x_end[iv] - v_next)
