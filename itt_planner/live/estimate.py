@@ -354,8 +354,8 @@ class StateEstimator:
         # backward only from a first placement not yet ridden on, when far behind it
         # (otherwise the published s slows until passed: a rider who rode there did).
         if unproven and match.s_m < self._s_pub - st.reacquire_back_m:
-            log.warning("estimator: re-acquired %.0f m behind the published s=%.0f m, where "
-                        "the first fix placed the rider: progress goes back to s=%.0f m",
+            log.warning("estimator: re-acquired %.0f m behind the published s=%.0f m, a "
+                        "placement not yet ridden on: progress goes back to s=%.0f m",
                         self._s_pub - match.s_m, self._s_pub, match.s_m)
             self.counters["gps_reacquired_back"] += 1
             self._s_pub = self._placed_s = match.s_m  # a new guess, to be ridden on again
