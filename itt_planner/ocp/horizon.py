@@ -244,7 +244,8 @@ class HorizonPlanner:
         e_target = self._window.terminal_e_n(nodes, float(x0[m.index("e_n")]))
         terminal = np.array([e_target, float(self.plan.at("v_mps", end)), st.v_weight,
                              float(self.plan.at("costate_v_s_per_mps", end))])
-        p = nlp.tr.params(road_data(self.course, nodes), self._par, terminal)
+        road = road_data(self.course, nodes)
+        p = nlp.tr.params(road, self._par, terminal)
         lbw, ubw = bounds.decision(lay)
         if self._failures >= st.reset_after_failures:
             self.reset()  # the last good solution is too far behind to be a good start
@@ -281,7 +282,7 @@ class HorizonPlanner:
             statuses.append(status)
             if rescued is not None:
                 res, success, outcome = rescued, True, rescued.status
-        if success and not nlp.resolved(res.w, p):
+        if success and not nlp.resolved(res.w, road):
             success = False
             statuses.append(UNRESOLVED)
         return self._solution(state, nodes, (nlp, p), res, success, outcome, statuses,

@@ -32,13 +32,14 @@ class HorizonNlp:
         model: the steady-lean 3D model.
         settings: the horizon's settings; `substeps` is replaced by the one given.
         substeps: RK4 steps per interval of this NLP.
-        par: the model's parameter vector (`ModelParams.vector`), for the rescue.
+        par: the model's parameter vector (`ModelParams.vector`), for the rescue and
+            `resolved`.
     """
 
     def __init__(self, model: SpatialModel, settings: HorizonSettings, substeps: int,
                  par: np.ndarray) -> None:
         st = self.settings = dataclasses.replace(settings, substeps=substeps)
-        self.model = model
+        self.model, self.par = model, par
         # Without the transcription's acceleration bound (issue 18): the window never
         # starts below 1 m/s (`initial_state`), its spacing follows the plan's speed and
         # its speed is bounded by physics (`bounds.speed_limit_mps`); with the bound the
@@ -91,13 +92,13 @@ class HorizonNlp:
         allowed = np.maximum(path[:, :1], 0.0) + st.grip_tol
         return bool(np.all(path <= allowed))
 
-    def resolved(self, w: np.ndarray, p: np.ndarray) -> bool:
-        """Whether each interval, integrated again with four times the substeps, ends
-        within `resolve_tol_mps` + 5 % of its next node's speed: the solution does not
-        ride the RK4 map beyond where it holds (`HorizonSettings.substeps`)."""
+    def resolved(self, w: np.ndarray, road: np.ndarray) -> bool:
+        """Whether each interval (`road`: its road data, ROAD x intervals), integrated
+        again with four times the substeps, ends within `resolve_tol_mps` + 5 % of its
+        next node's speed: the solution does not ride the RK4 map beyond where it holds
+        (`HorizonSettings.substeps`)."""
         x, u, _ = self.tr.layout.split(w)
-        road, par = self.tr.road_and_params(p)
-        x_end = np.asarray(self._fine(x[:, :-1], u, road, par)[0])
+        x_end = np.asarray(self._fine(x[:, :-1], u, road, self.par)[0])
         iv = self.model.index("v")
         v_next = x[iv, 1:]
         return bool(np.all(np.abs(x_end[iv] - v_next)

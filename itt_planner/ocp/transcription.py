@@ -148,11 +148,6 @@ class Transcription:
             parts.append(np.zeros(len(TERMINAL)) if terminal is None else terminal)
         return np.concatenate(parts)
 
-    def road_and_params(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The road data (ROAD x intervals) and model params `params` packed into `p`."""
-        n = self.layout.n_intervals
-        return p[: len(ROAD) * n].reshape(n, len(ROAD)).T, p[len(ROAD) * n:][: len(PARAMS)]
-
 
 #: Keyed by the model's expressions, not its name (a model rebuilt with other constants).
 _KERNELS: dict[tuple[str, int, bool], tuple[ca.Function, ...]] = {}
