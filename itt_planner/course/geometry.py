@@ -154,9 +154,7 @@ class Course:
 
     @property
     def mean_altitude_m(self) -> float:
-        """Mean altitude above sea level: the origin's plus the profile's mean rise from
-        its start (a GPS course's `z_m` is the altitude itself, a built course's starts
-        at 0; both start at the origin's altitude)."""
+        """Mean altitude above sea level (`z_m` against `origin`: see `to_geodetic`)."""
         return self.origin.alt_m + float(np.mean(self.z_m) - self.z_m[0])
 
     def at(self, field: str, s_m: float | np.ndarray) -> np.ndarray:
@@ -173,17 +171,26 @@ class Course:
 
     def to_geodetic(self, x_m: float | np.ndarray, y_m: float | np.ndarray,
                     z_m: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """ENU (m) -> WGS84 latitude, longitude (deg) and altitude (m)."""
+        """ENU (m) -> WGS84 latitude, longitude (deg) and altitude (m).
+
+        `x_m`, `y_m` are on the origin's tangent plane and `z_m` is altitude, on a scale
+        that starts at the origin's altitude at the start: a GPS course's `z_m` is the
+        altitude itself, a built course's starts at 0. (Taken as ENU up, a GPS course's
+        altitude counted twice, and a point 10 km away at the origin's altitude lies 8 m
+        under the tangent plane.)"""
         o = self.origin
-        lla = pymap3d.enu2geodetic(x_m, y_m, z_m, o.lat_deg, o.lon_deg, o.alt_m)
-        return cast(tuple[np.ndarray, np.ndarray, np.ndarray], lla)
+        lat, lon, _ = pymap3d.enu2geodetic(x_m, y_m, 0.0 * np.asarray(x_m), o.lat_deg,
+                                           o.lon_deg, o.alt_m)
+        return lat, lon, o.alt_m + np.asarray(z_m) - self.z_m[0]
 
     def from_geodetic(self, lat_deg: float | np.ndarray, lon_deg: float | np.ndarray,
                       alt_m: float | np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """WGS84 latitude, longitude (deg), altitude (m) -> ENU (m)."""
+        """WGS84 latitude, longitude (deg), altitude (m) -> ENU (m): the inverse of
+        `to_geodetic`, `z` on the course's `z_m` scale."""
         o = self.origin
-        enu = pymap3d.geodetic2enu(lat_deg, lon_deg, alt_m, o.lat_deg, o.lon_deg, o.alt_m)
-        return cast(tuple[np.ndarray, np.ndarray, np.ndarray], enu)
+        x, y, _ = pymap3d.geodetic2enu(lat_deg, lon_deg, o.alt_m + 0.0 * np.asarray(lat_deg),
+                                       o.lat_deg, o.lon_deg, o.alt_m)
+        return x, y, np.asarray(alt_m) - o.alt_m + self.z_m[0]
 
     def summary(self) -> dict[str, Any]:
         """The figures `itt-planner course info` prints (edge units: %, deg)."""

@@ -143,3 +143,21 @@ def test_bad_input_names_file_and_problem(tmp_path: Path, name: str, text: str,
     with pytest.raises(CourseError, match=problem) as info:
         fit_course_file(path)
     assert name in str(info.value)
+
+
+def test_a_gps_course_maps_back_to_its_own_altitude(real_course: Callable[[str], Course]
+                                                    ) -> None:
+    # A GPS course's z_m is the altitude itself (a built course's starts at 0): taken as a
+    # height above the origin, which is at the start's altitude, it was counted twice.
+    course = real_course("rides/edge810_vector_stjohns_2013.fit")
+    s = np.linspace(0.0, course.length_m, 50)
+    x, y, z = course.enu_at(s)
+    lat, lon, alt = course.to_geodetic(x, y, z)
+    assert course.origin.alt_m > 50.0  # else the test could not tell
+    np.testing.assert_allclose(alt - course.origin.alt_m, z - course.z_m[0], atol=0.05)
+    assert float(np.mean(alt)) == pytest.approx(course.mean_altitude_m, abs=1.0)
+    # Back (the tangent plane's point is not the one under it at the origin's altitude:
+    # 3 mm at 6 km).
+    xb, yb, zb = course.from_geodetic(lat, lon, alt)
+    np.testing.assert_allclose(np.column_stack([xb, yb, zb]), np.column_stack([x, y, z]),
+                               atol=0.01)
