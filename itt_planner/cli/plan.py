@@ -68,23 +68,6 @@ def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
     }
 
 
-def _air_warning(course: Any, assumed_kgpm3: float) -> list[str]:
-    """The course's own air (ISA at its mean altitude, 15 C) when it differs from the
-    density the plan assumed by more than 3 % (drag scales with it)."""
-    from itt_planner.model.conditions import (  # noqa: PLC0415
-        DEFAULT_TEMPERATURE_C,
-        air_density_kgpm3,
-    )
-
-    altitude = course.mean_altitude_m
-    own = float(air_density_kgpm3(altitude, DEFAULT_TEMPERATURE_C))
-    if abs(own / assumed_kgpm3 - 1.0) <= 0.03:
-        return []
-    return [(f"the plan assumes air at {assumed_kgpm3:.2f} kg/m^3; at the course's mean "
-             f"altitude, {altitude:.0f} m, it is {own:.2f} at {DEFAULT_TEMPERATURE_C:.0f} C "
-             f"(ISA): --air-density-kgpm3 {own:.2f} plans in it")]
-
-
 def _human(r: dict[str, Any]) -> str:
     lines = [(f"{r['course']} ({r['model']}): {r['finish_time_s']:.1f} s, "
               f"{r['mean_speed_kmh']} km/h, "
@@ -135,7 +118,7 @@ def plan_cli(
     """
     from itt_planner.course.loader import load_course  # noqa: PLC0415
     from itt_planner.errors import SolveError  # noqa: PLC0415
-    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
+    from itt_planner.model.conditions import Conditions, own_air_note  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
     from itt_planner.ocp.cache import solve_keeping_point  # noqa: PLC0415
     from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
@@ -156,8 +139,9 @@ def plan_cli(
                   if line == "shortest" else
                   solve_keeping_point(built, load_rider(rider), conditions, settings, model))
         result = plan_summary(solved, built) | {"line": line}
-        if air_density_kgpm3 is None:
-            result["warnings"] += _air_warning(built, conditions.air_density_kgpm3)
+        note = own_air_note(built.mean_altitude_m, conditions.air_density_kgpm3)
+        if air_density_kgpm3 is None and note:
+            result["warnings"].append(note)
         if not result["success"] and allow_unconverged:
             result["allowed_unconverged"] = True
         if output is not None:

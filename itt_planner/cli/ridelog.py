@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
 import typer
 
 from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit, progress_enabled
+from itt_planner.model.rider import PAPER_AIR_DENSITY_KGPM3
+from itt_planner.units import MPS_TO_KMH
 
 
 def _human_import(r: dict[str, Any]) -> str:
@@ -75,6 +78,14 @@ def replay_cli(
              "the finish, 1d-line before or where the 3d fails), 3d, or 1d-line (the 1D "
              "that knows the corners of the plan's line; the 3D where its plan is "
              "refused)."),
+    mu: float = typer.Option(1.0, "--mu", help="Tyre-road grip (1.0 dry, ~0.6 wet)."),
+    wind_kmh: float = typer.Option(0.0, "--wind-kmh", help="Wind speed (km/h)."),
+    wind_from_deg: float = typer.Option(0.0, "--wind-from-deg",
+                                        help="Direction the wind blows FROM (deg, 0 = North)."),
+    air_density_kgpm3: float = typer.Option(
+        PAPER_AIR_DENSITY_KGPM3, "--air-density-kgpm3",
+        help="Air density (kg/m^3); default the paper's 1.23 at any altitude (a warning "
+             "gives the course's own when it differs by over 3 %)."),
     cache_dir: Path = typer.Option(Path(".itt_cache"), "--cache-dir",
                                    help="Where full-course plans are cached."),
     live_timing: bool = typer.Option(
@@ -110,7 +121,10 @@ def replay_cli(
         config = SessionConfig(course=course, rider=rider, model=model,
                                plan_cache=str(cache_dir), horizon_m=horizon_m,
                                replan_period_s=replan_period, deterministic=not live_timing,
-                               course_resolve_model=resolve_model, namespace=namespace)
+                               course_resolve_model=resolve_model, namespace=namespace,
+                               grip_mu=mu, wind_speed_mps=wind_kmh / MPS_TO_KMH,
+                               wind_from_rad=math.radians(wind_from_deg),
+                               air_density_kgpm3=air_density_kgpm3)
         result = replay_ride(log, config, output=out, rrd=rrd, rerun_sinks=tuple(rerun),
                              settings=settings, progress=progress_enabled()).as_dict()
     emit(result, as_json, _human_replay)

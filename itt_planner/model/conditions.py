@@ -39,6 +39,18 @@ def air_density_kgpm3(altitude_m: np.ndarray | float, temperature_c: np.ndarray 
     return pressure / (_R_DRY * (np.asarray(temperature_c, float) + 273.15))
 
 
+def own_air_note(mean_altitude_m: float, assumed_kgpm3: float) -> str | None:
+    """The air at a course's mean altitude (ISA, 15 C) when it differs from the density
+    a plan assumes by more than 3 % (drag scales with it), else None."""
+    own = float(air_density_kgpm3(mean_altitude_m, DEFAULT_TEMPERATURE_C))
+    if abs(own / assumed_kgpm3 - 1.0) <= 0.03:
+        return None
+    return (f"the plan assumes air at {assumed_kgpm3:.2f} kg/m^3; at the course's mean "
+            f"altitude, {mean_altitude_m:.0f} m, it is {own:.2f} at "
+            f"{DEFAULT_TEMPERATURE_C:.0f} C (ISA): --air-density-kgpm3 {own:.2f} (plan, "
+            f"replay; the node's air_density_kgpm3) plans in it")
+
+
 @dataclass(frozen=True)
 class Conditions:
     """Road grip (model.md C16), wind (E3) and air density. Defaults: dry, still air."""

@@ -14,9 +14,12 @@ from typing import TYPE_CHECKING
 
 from itt_msgs_py import DEFAULT_NAMESPACE
 from itt_planner.errors import SolveError
+from itt_planner.model.rider import PAPER_AIR_DENSITY_KGPM3
 
 if TYPE_CHECKING:
     from itt_planner.live.engine import PacingEngine
+    from itt_planner.model.conditions import Conditions
+    from itt_planner.ocp.plan import Plan
 
 #: IPOPT's own default for `max_wall_time`: no limit.
 NO_WALL_TIME_LIMIT_S = 1e20
@@ -49,6 +52,13 @@ class SessionConfig:
         line_gate_m: the horizon plans from the advised line unless GPS puts the rider
             further off it than this (`EngineSettings`).
         diagnostics_period_s: stamp time between two diagnostics messages.
+        grip_mu: tyre-road grip, both ways (`Conditions.mu_x`, `mu_y`: 1.0 dry, ~0.6 wet).
+        wind_speed_mps: wind speed (`Conditions`).
+        wind_from_rad: direction the wind blows from, clockwise from North.
+        air_density_kgpm3: air density (the paper's 1.23 by default, at any altitude:
+            the session warns when the course's own differs by over 3 %).
+            A plan given by file (`plan`) brings the conditions it was solved in; these
+            four must then be left at their defaults or agree with it.
         deterministic: no wall-clock values in advice and diagnostics and no wall-time
             caps, so two runs over one log give byte-identical advice (replays); False
             is the live behaviour (overruns judged by the wall clock).
@@ -67,6 +77,10 @@ class SessionConfig:
     course_resolve_model: str = "auto"
     line_gate_m: float = 5.0
     diagnostics_period_s: float = 1.0
+    grip_mu: float = 1.0
+    wind_speed_mps: float = 0.0
+    wind_from_rad: float = 0.0
+    air_density_kgpm3: float = PAPER_AIR_DENSITY_KGPM3
     deterministic: bool = False
     namespace: str = DEFAULT_NAMESPACE
 
@@ -92,14 +106,13 @@ def build_engine(config: SessionConfig) -> PacingEngine:
 
     course = load_course(config.course)
     rider = load_rider(config.rider)
-    conditions = Conditions()
+    conditions = Conditions(mu_x=config.grip_mu, mu_y=config.grip_mu,
+                            wind_speed_mps=config.wind_speed_mps,
+                            wind_from_rad=config.wind_from_rad,
+                            air_density_kgpm3=config.air_density_kgpm3)
     if config.plan:
         plan = Plan.load(config.plan)
-        # The horizon plans in the wind, grip and air the plan was solved for (a plan
-        # solved in a 20 km/h wind was re-planned in still air).
-        saved = plan.meta.get("conditions", {})
-        conditions = Conditions(**{f.name: saved[f.name] for f in dataclasses.fields(Conditions)
-                                   if f.name in saved})
+        conditions = _plan_conditions(plan, conditions, config.plan)
     else:
         plan = load_or_solve(course, rider, conditions, OcpSettings(), config.model,
                              cache_dir=Path(config.plan_cache))
@@ -125,3 +138,22 @@ def build_engine(config: SessionConfig) -> PacingEngine:
                                            model=config.course_resolve_model))
     return PacingEngine(course, rider, plan, conditions=conditions, planner=planner,
                         settings=settings)
+
+
+def _plan_conditions(plan: Plan, asked: Conditions, path: str) -> Conditions:
+    """The conditions a plan given by file was solved in: the horizon plans in them (a
+    plan solved in a 20 km/h wind was re-planned in still air).
+
+    Raises:
+        SolveError: `asked` is not the default and differs from the plan's.
+    """
+    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
+
+    saved = plan.meta.get("conditions", {})
+    own = Conditions(**{f.name: saved[f.name] for f in dataclasses.fields(Conditions)
+                        if f.name in saved})
+    if asked not in (Conditions(), own):
+        raise SolveError(f"plan {path} was solved in {own}, not the session's {asked}: "
+                         "leave the session's conditions at their defaults, or solve the "
+                         "plan in them", status="invalid_input")
+    return own

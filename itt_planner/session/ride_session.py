@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 from itt_planner.live.advice import Advice, Diagnostic, Level
 from itt_planner.live.samples import Sample
+from itt_planner.model.conditions import own_air_note
 from itt_planner.session.config import SessionConfig, build_engine
 from itt_planner.session.sinks import Publish, Sinks
 
@@ -223,10 +224,17 @@ class RideSession:
         self.sinks.diagnostics(diagnostics, stamp_s)
 
     # ---- reporting ------------------------------------------------------------------
+    def setup_warnings(self) -> list[str]:
+        """What the session's set-up assumes that the course says otherwise (known at
+        start: the node logs them then)."""
+        air = self.engine.horizon.planner.conditions.air_density_kgpm3
+        note = own_air_note(self.engine.course.mean_altitude_m, air)
+        return [note] if note else []
+
     def warnings(self) -> list[str]:
         """What the session did not use silently, one line each with its count."""
         counts = self.engine.counts
-        out = []
+        out = self.setup_warnings()
         if not counts.plan_converged:
             out.append(f"the plan in force is not converged ({self.engine.plan.status}, "
                        f"{counts.plan_status}): advice from it is not optimal")

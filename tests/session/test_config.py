@@ -4,11 +4,15 @@ and a library user would ride with different advice."""
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from pathlib import Path
 
+import pytest
 from support.courses import straight
 
-from itt_planner.course.geometry import COURSE_SUFFIX
+from itt_planner.course.geometry import COURSE_SUFFIX, Course, GeoOrigin
+from itt_planner.errors import SolveError
 from itt_planner.live.course_replan import CourseReplanSettings
 from itt_planner.live.engine import EngineSettings
 from itt_planner.model.conditions import Conditions
@@ -16,6 +20,7 @@ from itt_planner.model.rider import PRESETS
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.horizon_settings import HorizonSettings
 from itt_planner.session.config import SessionConfig, build_engine
+from itt_planner.session.ride_session import RideSession
 
 
 def test_defaults_are_the_owners() -> None:
@@ -26,6 +31,11 @@ def test_defaults_are_the_owners() -> None:
     assert config.line_gate_m == engine.line_gate_m
     assert config.course_replan_period_s == CourseReplanSettings().period_s
     assert config.deterministic == engine.deterministic
+    still = Conditions()
+    assert (config.grip_mu, config.grip_mu) == (still.mu_x, still.mu_y)
+    assert (config.wind_speed_mps, config.wind_from_rad) == (still.wind_speed_mps,
+                                                             still.wind_from_rad)
+    assert config.air_density_kgpm3 == still.air_density_kgpm3
 
 
 def test_a_given_plan_brings_its_conditions(tmp_path: Path) -> None:
@@ -42,3 +52,37 @@ def test_a_given_plan_brings_its_conditions(tmp_path: Path) -> None:
         assert engine.horizon.planner.conditions == windy
     finally:
         engine.close()
+    # Asked for other conditions, the session says the plan was not solved in them.
+    with pytest.raises(SolveError, match=r"windy\.plan\.npz was solved in"):
+        build_engine(SessionConfig(course=str(saved), rider="typical", plan=str(path),
+                                   model="1d", wind_speed_mps=2.0))
+
+
+def test_a_session_plans_in_its_own_air_and_wind(tmp_path: Path) -> None:
+    """`replay --air-density-kgpm3/--wind-kmh`, the node's parameters: the full-course
+    plan and the horizon are solved in them. At 1,000 m in the paper's sea-level air the
+    session warns (its set-up warnings, which the node logs at start); in the course's
+    own air (ISA, 15 C: 1.09 kg/m^3) it does not."""
+    flat = straight(600.0)
+    high = Course.from_centerline("high", flat.x_m, flat.y_m, flat.z_m,
+                                  origin=GeoOrigin(45.0, 11.0, 1000.0))
+    saved = high.save(tmp_path / f"high{COURSE_SUFFIX}")
+    base = SessionConfig(course=str(saved), rider="typical", model="1d",
+                         plan_cache=str(tmp_path / "cache"), course_replan_period_s=0.0)
+    for config, warned in ((base, True), (dataclasses.replace(
+            base, air_density_kgpm3=1.09, wind_speed_mps=3.0, wind_from_rad=math.pi / 2,
+            grip_mu=0.7), False)):
+        engine = build_engine(config)
+        session = RideSession(config, engine)
+        try:
+            asked = Conditions(mu_x=config.grip_mu, mu_y=config.grip_mu,
+                               wind_speed_mps=config.wind_speed_mps,
+                               wind_from_rad=config.wind_from_rad,
+                               air_density_kgpm3=config.air_density_kgpm3)
+            assert engine.horizon.planner.conditions == asked
+            assert engine.plan.meta["conditions"] == dataclasses.asdict(asked)
+            notes = session.setup_warnings()
+            assert bool(notes) == warned, notes
+            assert all("1.09" in n for n in notes)
+        finally:
+            session.close()

@@ -146,6 +146,8 @@ class PacingNode(Node):
         self.logger().info(
             f'ready on {self.get_namespace()}: course {config.course}, rider {config.rider},'
             f' plan {self.session.plan.solver_status}, replan every {config.replan_period_s} s')
+        for warning in self.session.setup_warnings():
+            self.logger().warning(warning)
 
     def logger(self) -> Any:
         """The node's rclpy logger (rclpy's untyped calls are allowed, pyproject, but
