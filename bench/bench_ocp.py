@@ -91,7 +91,7 @@ def naive_baseline(course: Course, rider: Rider) -> dict[str, Any]:
                           start_speed(rider, Conditions(), OcpSettings()))
     v_max = speed_limit_mps(course, nodes, rider, Conditions(), float(xg[model.index("v"), 0]))
     b = simple_bounds(model, course, nodes, xg[:, 0], margin_m=OcpSettings().margin_m,
-                      v_max_mps=v_max)
+                      v_max_mps=v_max, finish_mu_y=Conditions().mu_y)
     lbx, ubx = b.lbx, b.ubx
     opti.subject_to(opti.bounded(lbx, x, ubx))
     opti.set_initial(x, np.clip(xg, lbx, ubx))

@@ -10,6 +10,7 @@ exists in the full 3D model only, the lateral states not in the 1D model).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,8 +30,9 @@ U_W_MAX = 50.0
 #: |bound| of the normalised commands W_n (C13) and delta_n (C14).
 _COMMAND_MAX = 1.0
 #: Loose bounds (rad) on the relative heading and the lean: they keep trial points of
-#: the solver in the range where the model is meaningful and are never active at a
-#: solution (grip, C16, bounds the lean to ~atan(mu_y) = 0.79 rad on a dry road).
+#: the solver in the range where the model is meaningful and are not active at a
+#: solution before its last node (grip, C16, bounds the lean to ~atan(mu_y) = 0.79 rad
+#: on a dry road; the last node is held to that: `simple_bounds`).
 _ALPHA_MAX_RAD = 1.0
 _PHI_MAX_RAD = 1.2
 _U_MAX = {"u_delta": U_DELTA_MAX, "u_w": U_W_MAX}
@@ -74,11 +76,17 @@ def speed_limit_mps(course: Course, nodes: np.ndarray, rider: Rider, conditions:
 
 def simple_bounds(model: SpatialModel, course: Course, nodes: np.ndarray, x0: np.ndarray, *,
                   margin_m: float, v_max_mps: float | np.ndarray,
-                  e_final_min: float = 0.0) -> Bounds:
+                  finish_mu_y: float | None = None, e_final_min: float = 0.0) -> Bounds:
     """C11 (road edges less `margin_m`), C12 (0 <= E_n <= 1, and >= `e_final_min` at
     the last node), C13/C14 (|W_n|, |delta_n| <= 1, the rates u within `_U_MAX`),
     `V_MIN_MPS <= v <= v_max_mps` (per node or one value) and the loose angle bounds;
-    the first node fixed at `x0` clipped into them."""
+    the first node fixed at `x0` clipped into them.
+
+    Where the last node is the finish (`finish_mu_y` given: the grip there), its lean is
+    within the grip's steady lean, atan(`finish_mu_y`), and not changing: model.md
+    leaves the end state free, and a plan whose finish is in a bend crossed the line
+    falling (the loose bound, 69 deg, at 220 deg/s), as nothing after the line pays for
+    it. (A horizon window's end is tied to the plan by its soft terminal condition.)"""
     n = len(nodes)
     lbx, ubx = np.full((model.nx, n), -np.inf), np.full((model.nx, n), np.inf)
 
@@ -95,6 +103,10 @@ def simple_bounds(model: SpatialModel, course: Course, nodes: np.ndarray, x0: np
     bound("delta_n", -_COMMAND_MAX, _COMMAND_MAX)  # C14
     bound("e_n", 0.0, 1.0)  # C12
     lbx[model.index("e_n"), -1] = e_final_min
+    if finish_mu_y is not None and "phi" in model.states:
+        lean = math.atan(finish_mu_y)
+        lbx[model.index("phi"), -1], ubx[model.index("phi"), -1] = -lean, lean
+        lbx[model.index("phi_dot"), -1] = ubx[model.index("phi_dot"), -1] = 0.0
     lbx[:, 0] = ubx[:, 0] = np.clip(x0, lbx[:, 0], ubx[:, 0])
     u_max = np.array([_U_MAX[name] for name in model.controls])[:, None]
     return Bounds(lbx, ubx, np.repeat(-u_max, n - 1, axis=1), np.repeat(u_max, n - 1, axis=1))

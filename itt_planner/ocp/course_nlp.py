@@ -148,7 +148,8 @@ def course_nlp(course: Course, rider: Rider, conditions: Conditions, settings: O
         x_guess, u_guess = plan_guess(spm, guess, nodes, x_guess, u_guess)
     v_max = speed_limit_mps(course, nodes, rider, conditions, float(x0[spm.index("v")]))
     bounds = simple_bounds(spm, course, nodes, x0, margin_m=settings.margin_m,
-                           v_max_mps=v_max, e_final_min=settings.e_final_min)
+                           v_max_mps=v_max, finish_mu_y=conditions.mu_y,
+                           e_final_min=settings.e_final_min)
     lbx, ubx = bounds.lbx, bounds.ubx
     if start is not None:
         # The guess's W' re-anchored at the start's: a rider off the plan has a deficit
