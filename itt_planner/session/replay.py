@@ -16,7 +16,7 @@ import math
 import sys
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +67,8 @@ class ReplayResult:
     fallbacks: int = 0
     counts: dict[str, Any] = field(default_factory=dict)
     advice_stats: dict[str, Any] = field(default_factory=dict)
+    #: The grip, wind and air the plans were solved in (`Conditions`, SI units).
+    conditions: dict[str, float] = field(default_factory=dict)
 
     @property
     def realtime_factor(self) -> float:
@@ -86,6 +88,7 @@ class ReplayResult:
             "warnings": list(self.warnings), "errors": list(self.errors),
             "topics_out": dict(self.topics_out), "fallbacks": self.fallbacks,
             "counts": dict(self.counts), "advice_stats": dict(self.advice_stats),
+            "conditions": dict(self.conditions),
             "solve_time_median_s": solve[len(solve) // 2] if solve else None,
             "solve_time_max_s": solve[-1] if solve else None,
         }
@@ -230,6 +233,7 @@ def _report(result: ReplayResult, session: RideSession, reader: RideLogReader,
     result.advice_out = session.advice_out
     result.fallbacks = session.fallbacks
     result.counts = session.counts()
+    result.conditions = asdict(session.conditions)
     result.warnings.extend(reader.warnings)
     result.warnings.extend(f"input had {n} messages on {topic}: replaced by the replay's own"
                            for topic, n in sorted(replaced.items()))

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 from itt_planner.live.advice import Advice, Diagnostic, Level
 from itt_planner.live.samples import Sample
-from itt_planner.model.conditions import own_air_note
+from itt_planner.model.conditions import Conditions, own_air_note
 from itt_planner.session.config import SessionConfig, build_engine
 from itt_planner.session.sinks import Publish, Sinks
 
@@ -224,11 +224,16 @@ class RideSession:
         self.sinks.diagnostics(diagnostics, stamp_s)
 
     # ---- reporting ------------------------------------------------------------------
+    @property
+    def conditions(self) -> Conditions:
+        """The grip, wind and air the session's plans are solved in."""
+        return self.engine.horizon.planner.conditions
+
     def setup_warnings(self) -> list[str]:
         """What the session's set-up assumes that the course says otherwise (known at
         start: the node logs them then)."""
-        air = self.engine.horizon.planner.conditions.air_density_kgpm3
-        note = own_air_note(self.engine.course.mean_altitude_m, air)
+        note = own_air_note(self.engine.course.mean_altitude_m,
+                            self.conditions.air_density_kgpm3)
         return [note] if note else []
 
     def warnings(self) -> list[str]:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -24,6 +26,7 @@ from itt_planner.ocp.cache import load_or_solve
 from itt_planner.ocp.course_settings import OcpSettings
 from itt_planner.ocp.horizon import HorizonPlanner
 from itt_planner.ocp.horizon_settings import HorizonSettings
+from itt_planner.ocp.plan import Plan
 from itt_planner.ocp.solver import PlanStatus
 from itt_planner.session import replay as replay_mod
 from itt_planner.session.config import NO_WALL_TIME_LIMIT_S, SessionConfig
@@ -239,6 +242,27 @@ def test_cli_replay_json(setup: dict[str, Any], tmp_path: Path) -> None:
             "output", "rrd", "warnings", "errors"} <= set(data)
     assert data["advice_out"] >= 2 and data["errors"] and data["rrd"] is None
     assert Path(data["output"]).is_file()
+    assert data["conditions"] == dataclasses.asdict(Conditions())
+
+
+def test_cli_replay_plans_in_the_conditions_given(setup: dict[str, Any], tmp_path: Path
+                                                  ) -> None:
+    """`replay --mu --wind-kmh --wind-from-deg --air-density-kgpm3`: converted at the edge
+    (km/h, degrees) and said in the JSON; the plan is solved in them (it was still air at
+    1.23 kg/m^3 whatever the replay was told, as no option existed)."""
+    course = tmp_path / "hairpin.course.npz"
+    setup["course"].save(course)
+    result = CliRunner().invoke(app, [
+        "replay", str(setup["log"]), "--course", str(course), "--rider", "typical",
+        "--model", "1d", "--replan-period", "60", "--horizon-m", str(HORIZON_M),
+        "--cache-dir", str(tmp_path / "cache"), "--mu", "0.8", "--wind-kmh", "18",
+        "--wind-from-deg", "90", "--air-density-kgpm3", "1.1", "--json"])
+    assert result.exit_code == 0, result.output
+    got = json.loads(result.stdout)["conditions"]
+    assert got == pytest.approx({"mu_x": 0.8, "mu_y": 0.8, "wind_speed_mps": 5.0,
+                                 "wind_from_rad": math.pi / 2, "air_density_kgpm3": 1.1})
+    cached = [Plan.load(p) for p in (tmp_path / "cache").rglob("*.npz")]
+    assert cached and all(p.meta["conditions"] == got for p in cached)
 
 
 def test_cli_replay_refuses_an_unknown_resolve_model(tmp_path: Path) -> None:
