@@ -8,17 +8,20 @@ plan (from the plan cache) and builds the `PacingEngine` with its horizon planne
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, cast
 
 from itt_msgs_py import DEFAULT_NAMESPACE
-from itt_planner.errors import SolveError
+from itt_planner.errors import IttError, SolveError
 from itt_planner.model.rider import PAPER_AIR_DENSITY_KGPM3
 
 if TYPE_CHECKING:
+    from itt_planner.course.geometry import Course
     from itt_planner.live.engine import PacingEngine
     from itt_planner.model.conditions import Conditions
+    from itt_planner.model.rider import Rider
     from itt_planner.ocp.plan import Plan
 
 #: IPOPT's own default for `max_wall_time`: no limit.
@@ -84,6 +87,61 @@ class SessionConfig:
     deterministic: bool = False
     namespace: str = DEFAULT_NAMESPACE
 
+    @classmethod
+    def from_metadata(cls, values: Mapping[str, str], source: str) -> SessionConfig:
+        """The config a session wrote into its log (`RideSession.describe`: strings).
+
+        A field the log does not name keeps its default: a log from before the field
+        existed was run with it.
+
+        Raises:
+            IttError: a value that is not of its field's type (names `source`).
+        """
+        kwargs: dict[str, object] = {}
+        for f in dataclasses.fields(cls):
+            if f.name not in values:
+                continue
+            text, kind = values[f.name], cast(type[Any], type(f.default))
+            try:
+                kwargs[f.name] = {"True": True, "False": False}[text] if kind is bool \
+                    else kind(text)
+            except (KeyError, ValueError):
+                raise IttError(f"{source}: session metadata {f.name}={text!r} is not a "
+                               f"{kind.__name__}") from None
+        return cls(**kwargs)  # type: ignore[arg-type]  # each value of its field's type
+
+    def conditions(self) -> Conditions:
+        """The grip, wind and air asked for (a plan given by file has its own:
+        `session_plan`)."""
+        from itt_planner.model.conditions import Conditions  # noqa: PLC0415
+
+        return Conditions(mu_x=self.grip_mu, mu_y=self.grip_mu,
+                          wind_speed_mps=self.wind_speed_mps, wind_from_rad=self.wind_from_rad,
+                          air_density_kgpm3=self.air_density_kgpm3)
+
+
+def session_plan(config: SessionConfig, course: Course, rider: Rider
+                 ) -> tuple[Plan, Conditions]:
+    """The full-course plan of a session and the conditions it was solved in: the plan
+    file `config.plan` with its own, else the plan cache's (solved there on a miss) in
+    the config's. A replay's report takes the same plan as the replay did.
+
+    Raises:
+        SolveError: the plan file was solved in other conditions than the config asks
+            for (unless those are the defaults).
+    """
+    # Heavy (CasADi): imported when a plan is actually needed.
+    from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
+    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
+    from itt_planner.ocp.plan import Plan  # noqa: PLC0415
+
+    conditions = config.conditions()
+    if config.plan:
+        plan = Plan.load(config.plan)
+        return plan, _plan_conditions(plan, conditions, config.plan)
+    return load_or_solve(course, rider, conditions, OcpSettings(), config.model,
+                         cache_dir=Path(config.plan_cache)), conditions
+
 
 def build_engine(config: SessionConfig) -> PacingEngine:
     """Load the course, rider and full-course plan of `config` and build the engine.
@@ -95,27 +153,14 @@ def build_engine(config: SessionConfig) -> PacingEngine:
     from itt_planner.course.loader import load_course  # noqa: PLC0415
     from itt_planner.live.course_replan import CourseReplanSettings  # noqa: PLC0415
     from itt_planner.live.engine import EngineSettings, PacingEngine  # noqa: PLC0415
-    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
-    from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
-    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
     from itt_planner.ocp.horizon import HorizonPlanner  # noqa: PLC0415
     from itt_planner.ocp.horizon_settings import HorizonSettings  # noqa: PLC0415
-    from itt_planner.ocp.plan import Plan  # noqa: PLC0415
     from itt_planner.ocp.solver import PlanStatus  # noqa: PLC0415
 
     course = load_course(config.course)
     rider = load_rider(config.rider)
-    conditions = Conditions(mu_x=config.grip_mu, mu_y=config.grip_mu,
-                            wind_speed_mps=config.wind_speed_mps,
-                            wind_from_rad=config.wind_from_rad,
-                            air_density_kgpm3=config.air_density_kgpm3)
-    if config.plan:
-        plan = Plan.load(config.plan)
-        conditions = _plan_conditions(plan, conditions, config.plan)
-    else:
-        plan = load_or_solve(course, rider, conditions, OcpSettings(), config.model,
-                             cache_dir=Path(config.plan_cache))
+    plan, conditions = session_plan(config, course, rider)
     if plan.status in (PlanStatus.FAILED, PlanStatus.INVALID):
         # A capped plan is still a verified trajectory (advised, with a warning); a failed
         # or invalid one is not a plan a rider should be given.

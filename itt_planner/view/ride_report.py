@@ -12,6 +12,7 @@ silent replay with none of the planner's output to compare against.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -214,8 +215,10 @@ def ride_setup(trace: RideTrace, course_spec: str | None, rider_spec: str | None
                cache_dir: Path) -> tuple[Course, Rider, Plan]:
     """The course, rider and full-course plan a replayed ride is compared with.
 
-    Course, rider and model default to those the replay's metadata names; the plan comes
-    from the plan cache (solved and stored on a miss, as the replay did).
+    Course, rider, model, conditions and plan file default to those the replay's
+    metadata names (`SessionConfig.from_metadata`); the plan is the one the replay had
+    (`session.config.session_plan`: its plan file, else the plan cache's in its
+    conditions, solved and stored on a miss).
 
     Raises:
         IttError: no course or rider given or named, or the ride does not fit the course.
@@ -223,11 +226,10 @@ def ride_setup(trace: RideTrace, course_spec: str | None, rider_spec: str | None
     """
     # Heavy (CasADi): imported when a ride report is actually made.
     from itt_planner.course.loader import load_course  # noqa: PLC0415
-    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
-    from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
-    from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
+    from itt_planner.session.config import SessionConfig, session_plan  # noqa: PLC0415
 
+    logged = SessionConfig.from_metadata(trace.metadata, str(trace.path))
     course_spec = course_spec or trace.metadata.get("course")
     rider_spec = rider_spec or trace.metadata.get("rider")
     if not course_spec or not rider_spec:
@@ -238,6 +240,7 @@ def ride_setup(trace: RideTrace, course_spec: str | None, rider_spec: str | None
         raise IttError(f"{trace.path}: the ride reaches {trace.advice_s_m.max():.0f} m but "
                        f"course {course.name!r} is {course.length_m:.0f} m long: wrong --course?")
     rider = load_rider(rider_spec)
-    model = trace.metadata.get("model", "3d")
-    plan = load_or_solve(course, rider, Conditions(), OcpSettings(), model, cache_dir=cache_dir)
+    config = dataclasses.replace(logged, course=course_spec, rider=rider_spec,
+                                 plan_cache=str(cache_dir))
+    plan, _ = session_plan(config, course, rider)
     return course, rider, plan

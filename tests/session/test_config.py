@@ -12,7 +12,7 @@ import pytest
 from support.courses import straight
 
 from itt_planner.course.geometry import COURSE_SUFFIX, Course, GeoOrigin
-from itt_planner.errors import SolveError
+from itt_planner.errors import IttError, SolveError
 from itt_planner.live.course_replan import CourseReplanSettings
 from itt_planner.live.engine import EngineSettings
 from itt_planner.model.conditions import Conditions
@@ -86,3 +86,19 @@ def test_a_session_plans_in_its_own_air_and_wind(tmp_path: Path) -> None:
             assert all("1.09" in n for n in notes)
         finally:
             session.close()
+
+
+def test_a_logged_config_reads_back() -> None:
+    """A session writes its config into its log as strings (`RideSession.describe`); the
+    report reads it back to take the replay's plan. A field an older log lacks keeps its
+    default (it ran with it); a value of the wrong type names the log and the field."""
+    config = SessionConfig(course="c.gpx", rider="me.yaml", horizon_m=750.0,
+                           wind_from_rad=1.5, deterministic=True, on_plan_band_j=0.0)
+    logged = {k: str(v) for k, v in dataclasses.asdict(config).items()}
+    assert SessionConfig.from_metadata(logged, "x.mcap") == config
+    del logged["wind_from_rad"]
+    assert SessionConfig.from_metadata(logged, "x.mcap").wind_from_rad == 0.0
+    with pytest.raises(IttError, match=r"x\.mcap: session metadata horizon_m='far'"):
+        SessionConfig.from_metadata({**logged, "horizon_m": "far"}, "x.mcap")
+    with pytest.raises(IttError, match="deterministic='yes' is not a bool"):
+        SessionConfig.from_metadata({**logged, "deterministic": "yes"}, "x.mcap")

@@ -33,6 +33,7 @@ from itt_planner.session.config import NO_WALL_TIME_LIMIT_S, SessionConfig
 from itt_planner.session.replay import ReplaySettings, parse_speed, replay
 from itt_planner.session.ride_session import RideSession
 from itt_planner.sim import hairpin_course, sensor_samples
+from itt_planner.view.ride_report import load_ride_trace, ride_setup
 
 if TYPE_CHECKING:
     from itt_planner.view.rerun_log import RideRecorder
@@ -256,13 +257,18 @@ def test_cli_replay_plans_in_the_conditions_given(setup: dict[str, Any], tmp_pat
         "replay", str(setup["log"]), "--course", str(course), "--rider", "typical",
         "--model", "1d", "--replan-period", "60", "--horizon-m", str(HORIZON_M),
         "--cache-dir", str(tmp_path / "cache"), "--mu", "0.8", "--wind-kmh", "18",
-        "--wind-from-deg", "90", "--air-density-kgpm3", "1.1", "--json"])
+        "--wind-from-deg", "90", "--air-density-kgpm3", "1.1", "--json",
+        "--out", str(tmp_path / "advice.mcap")])
     assert result.exit_code == 0, result.output
     got = json.loads(result.stdout)["conditions"]
     assert got == pytest.approx({"mu_x": 0.8, "mu_y": 0.8, "wind_speed_mps": 5.0,
                                  "wind_from_rad": math.pi / 2, "air_density_kgpm3": 1.1})
     cached = [Plan.load(p) for p in (tmp_path / "cache").rglob("*.npz")]
     assert cached and all(p.meta["conditions"] == got for p in cached)
+    # Its report compares the ride with that plan (it took the still-air one).
+    _, _, plan = ride_setup(load_ride_trace(tmp_path / "advice.mcap"), None, None,
+                            tmp_path / "cache")
+    assert plan.meta["conditions"] == got
 
 
 def test_cli_replay_refuses_an_unknown_resolve_model(tmp_path: Path) -> None:
