@@ -242,5 +242,8 @@ def ride_setup(trace: RideTrace, course_spec: str | None, rider_spec: str | None
     rider = load_rider(rider_spec)
     config = dataclasses.replace(logged, course=course_spec, rider=rider_spec,
                                  plan_cache=str(cache_dir))
+    if config.plan and not Path(config.plan).is_file():
+        raise IttError(f"{trace.path}: the session was advised from plan {config.plan}, "
+                       "which is not here: the report compares the ride with that plan")
     plan, _ = session_plan(config, course, rider)
     return course, rider, plan

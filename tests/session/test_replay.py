@@ -15,7 +15,7 @@ from support.mcap_readers import check_all_readers, rerun_value
 from typer.testing import CliRunner
 
 from itt_planner.cli import app
-from itt_planner.errors import RideLogError
+from itt_planner.errors import IttError, RideLogError
 from itt_planner.live.advice import Advice
 from itt_planner.live.engine import ON_PLAN, EngineSettings, PacingEngine
 from itt_planner.logs.ridelog import RawRecord, RideLogReader
@@ -269,6 +269,15 @@ def test_cli_replay_plans_in_the_conditions_given(setup: dict[str, Any], tmp_pat
     _, _, plan = ride_setup(load_ride_trace(tmp_path / "advice.mcap"), None, None,
                             tmp_path / "cache")
     assert plan.meta["conditions"] == got
+    # A session advised from a plan file: the report takes that plan, or says it is gone.
+    trace = load_ride_trace(tmp_path / "advice.mcap")
+    trace.metadata["plan"] = str(tmp_path / "gone.plan.npz")
+    with pytest.raises(IttError, match=r"advised from plan .*gone\.plan\.npz, which is not here"):
+        ride_setup(trace, None, None, tmp_path / "cache")
+    cached[0].save(tmp_path / "kept.plan.npz")
+    trace.metadata["plan"] = str(tmp_path / "kept.plan.npz")
+    assert ride_setup(trace, None, None, tmp_path / "cache")[2].finish_time_s == \
+        cached[0].finish_time_s
 
 
 def test_cli_replay_refuses_an_unknown_resolve_model(tmp_path: Path) -> None:
