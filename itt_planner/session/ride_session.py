@@ -118,6 +118,8 @@ class RideSession:
                       keep_advice=keep_advice, max_catch_up_s=max_catch_up_s)
         if writer is not None:
             writer.add_metadata(SESSION_METADATA, {**session.describe(), **(metadata or {})})
+        if recorder is not None:
+            recorder.log_notes(session.setup_warnings())
         return session
 
     @property

@@ -138,6 +138,15 @@ class RideRecorder:
         with self._lock:
             scene.log_course(self.rec, self.course, self.rider, self.plan)
 
+    def log_notes(self, notes: list[str]) -> None:
+        """What the session's set-up assumes that the course says otherwise
+        (`RideSession.setup_warnings`): static, so a coach sees it at any time."""
+        if not self.enabled or not notes:
+            return
+        with self._lock:
+            self.rec.log(paths.LOG_SESSION, rr.TextLog("\n".join(notes),
+                                                      level=rr.TextLogLevel.WARN), static=True)
+
     def log_plan(self, plan: Plan, version: int) -> None:
         """A new plan in force (`PacingEngine.plan` after an adoption, `plan_version`):
         its curves replace the old plan's from the rider's position on distance_m, and

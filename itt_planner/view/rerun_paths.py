@@ -143,6 +143,7 @@ LOG_ADVICE = f"{LOG}/advice"
 LOG_BELIEF = f"{LOG}/belief"
 LOG_DIAGNOSTICS = f"{LOG}/diagnostics"
 LOG_INPUTS = f"{LOG}/inputs"
+LOG_SESSION = f"{LOG}/session"
 
 
 def map_track_segment(index: int) -> str:

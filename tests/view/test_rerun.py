@@ -314,6 +314,21 @@ def test_recorder_without_plan_and_relative_stamps(tmp_path: Path) -> None:
     assert "/plots/power/plan" not in store.summary()
 
 
+def test_session_notes_are_static_warnings(tmp_path: Path) -> None:
+    """The session's set-up warnings (the course's own air) reach a coach in Rerun at
+    any time of the ride."""
+    path = tmp_path / "notes.rrd"
+    rec = open_recording(RerunSink.parse(f"file:{path}"))
+    recorder = RideRecorder(rec, make_course(), RIDER, None)
+    recorder.log_notes(["air 1.09 kg/m^3 at the course's altitude", "second note"])
+    rec.flush()
+    rec.disconnect()
+    store = RrdReader(path).store().stream().collect()
+    assert static_value(store, "/log/session", "TextLog:text") == [
+        "air 1.09 kg/m^3 at the course's altitude\nsecond note"]
+    assert static_value(store, "/log/session", "TextLog:level") == ["WARN"]
+
+
 def test_sample_without_a_view_is_counted_and_noted_once(tmp_path: Path) -> None:
     """A sensor added to the inputs before the recorder has a view for it: not drawn,
     counted, one log/inputs line (not one per sample)."""
