@@ -308,7 +308,10 @@ def detect_corners(s_m: np.ndarray, kappa_per_m: np.ndarray) -> tuple[Corner, ..
 
     A run that turns less than `CORNER_MIN_ANGLE_RAD` (a kink of the road, not a corner)
     is dropped. Consecutive runs of opposite sign (an S-bend) are separate corners. Entry
-    and exit are where |kappa| falls to half of the threshold, so the whole bend is timed.
+    and exit are where |kappa| falls to half of the threshold, so the whole bend is timed;
+    runs of one sign that this joins (a double apex) are one corner, its apex the
+    tightest (each was listed with the whole bend's angle: a 149 deg bend as two of
+    149 deg, overlapping).
     """
     kappa = np.asarray(kappa_per_m)
     sign = np.sign(kappa)
@@ -329,11 +332,11 @@ def detect_corners(s_m: np.ndarray, kappa_per_m: np.ndarray) -> tuple[Corner, ..
             b += 1
         angle = float(np.trapezoid(kappa[a:b + 1], s_m[a:b + 1])) if b > a else 0.0
         if abs(angle) >= CORNER_MIN_ANGLE_RAD:
-            apex = i + int(np.argmax(np.abs(kappa[i:j + 1])))
+            apex = i + int(np.argmax(np.abs(kappa[i:b + 1])))
             corners.append(Corner(
                 apex_s_m=float(s_m[apex]), entry_s_m=float(s_m[a]), exit_s_m=float(s_m[b]),
                 min_radius_m=float(1.0 / abs(kappa[apex])), angle_rad=abs(angle),
                 direction="left" if kappa[apex] > 0 else "right",
             ))
-        i = j + 1
+        i = b + 1
     return tuple(corners)

@@ -111,3 +111,21 @@ def test_a_full_circle_is_a_warning() -> None:
     [warning] = loop.summary()["warnings"]
     assert "turns 7" in warning and "no road" in warning
     assert hairpin_course().summary()["warnings"] == []
+
+
+def test_a_double_apex_bend_is_one_corner() -> None:
+    """Two tight arcs of one direction joined by a wider one (150 m: under twice the
+    corner radius, so one bend): one corner of the whole bend's angle, its apex the
+    tighter arc's. Each arc was a corner of its own with the whole bend's angle, their
+    spans overlapping (a phone's mountain-bike ride listed a 149 deg bend twice)."""
+    arc = {"type": "arc", "direction": "right"}
+    course = build_course({"name": "double-apex", "segments": [
+        {"type": "straight", "length_m": 200.0},
+        arc | {"angle_deg": 60.0, "radius_m": 25.0},
+        arc | {"angle_deg": 20.0, "radius_m": 150.0},
+        arc | {"angle_deg": 60.0, "radius_m": 15.0},
+        {"type": "straight", "length_m": 200.0}]})
+    [corner] = course.corners
+    assert math.degrees(corner.angle_rad) == pytest.approx(140.0, abs=3.0)
+    assert corner.min_radius_m == pytest.approx(15.0, rel=0.05)
+    assert corner.direction == "right"
