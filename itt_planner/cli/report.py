@@ -190,8 +190,9 @@ def make_ride_report(log_path: Path, output: Path, course_spec: str | None,
     Raises:
         IttError: not a replay output, unreadable log, course or rider, unwritable output.
     """
+    from itt_planner.session.config import ride_setup  # noqa: PLC0415
     from itt_planner.view.report import ride_summary, write_report  # noqa: PLC0415
-    from itt_planner.view.ride_report import load_ride_trace, ride_setup  # noqa: PLC0415
+    from itt_planner.view.ride_report import load_ride_trace  # noqa: PLC0415
 
     trace = load_ride_trace(log_path)
     course, rider, plan = ride_setup(trace, course_spec, rider_spec, cache_dir)

@@ -1,8 +1,11 @@
-"""What decides a session's advice, and the engine built from it.
+"""What decides a session's advice, the engine built from it, and the plan a logged
+session had.
 
 `SessionConfig` is loaded once at the edge (CLI options or ROS parameters: the node
 declares one parameter per field); `build_engine` loads the course, rider and full-course
-plan (from the plan cache) and builds the `PacingEngine` with its horizon planner.
+plan (`session_plan`: a plan file, else the plan cache's) and builds the `PacingEngine`
+with its horizon planner. A session writes its config into its log; `ride_setup` reads
+it back (`SessionConfig.from_metadata`) for the ride's report.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ if TYPE_CHECKING:
     from itt_planner.model.conditions import Conditions
     from itt_planner.model.rider import Rider
     from itt_planner.ocp.plan import Plan
+    from itt_planner.view.ride_report import RideTrace
 
 #: IPOPT's own default for `max_wall_time`: no limit.
 NO_WALL_TIME_LIMIT_S = 1e20
@@ -202,3 +206,39 @@ def _plan_conditions(plan: Plan, asked: Conditions, path: str) -> Conditions:
                          "leave the session's conditions at their defaults, or solve the "
                          "plan in them", status="invalid_input")
     return own
+
+
+def ride_setup(trace: RideTrace, course_spec: str | None, rider_spec: str | None,
+               cache_dir: Path) -> tuple[Course, Rider, Plan]:
+    """The course, rider and full-course plan a replayed ride is compared with.
+
+    Course, rider, model, conditions and plan file default to those the replay's
+    metadata names (`SessionConfig.from_metadata`); the plan is the one the replay had
+    (`session_plan`: its plan file, else the plan cache's in its conditions, solved
+    and stored on a miss).
+
+    Raises:
+        IttError: no course or rider given or named, or the ride does not fit the course.
+        CourseError, RiderError, SolveError: the course, rider or plan is unusable.
+    """
+    # Heavy (CasADi): imported when a ride report is actually made.
+    from itt_planner.course.loader import load_course  # noqa: PLC0415
+    from itt_planner.model.rider import load_rider  # noqa: PLC0415
+    logged = SessionConfig.from_metadata(trace.metadata, str(trace.path))
+    course_spec = course_spec or trace.metadata.get("course")
+    rider_spec = rider_spec or trace.metadata.get("rider")
+    if not course_spec or not rider_spec:
+        raise IttError(f"{trace.path}: the log's metadata names no course or rider; pass "
+                       "--course and --rider")
+    course = load_course(course_spec)
+    if trace.advice_s_m.max() > course.length_m + 1.0:
+        raise IttError(f"{trace.path}: the ride reaches {trace.advice_s_m.max():.0f} m but "
+                       f"course {course.name!r} is {course.length_m:.0f} m long: wrong --course?")
+    rider = load_rider(rider_spec)
+    config = dataclasses.replace(logged, course=course_spec, rider=rider_spec,
+                                 plan_cache=str(cache_dir))
+    if config.plan and not Path(config.plan).is_file():
+        raise IttError(f"{trace.path}: the session was advised from plan {config.plan}, "
+                       "which is not here: the report compares the ride with that plan")
+    plan, _ = session_plan(config, course, rider)
+    return course, rider, plan

@@ -12,7 +12,6 @@ silent replay with none of the planner's output to compare against.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,8 +25,6 @@ from itt_planner.errors import IttError
 from itt_planner.live.advice import Advice
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.logs.ridelog import SESSION_METADATA, RideLogReader
-from itt_planner.model.rider import Rider
-from itt_planner.ocp.plan import Plan
 
 #: The first bytes of every MCAP file.
 MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -209,41 +206,3 @@ def actual_finish_s(trace: RideTrace, course: Course) -> float | None:
         return min(crossing, float(trace.advice_t_s[i + 1]))
     left_at_end_m = (crossing - trace.duration_s) * v
     return crossing if left_at_end_m <= FINISH_TOLERANCE_M else None
-
-
-def ride_setup(trace: RideTrace, course_spec: str | None, rider_spec: str | None,
-               cache_dir: Path) -> tuple[Course, Rider, Plan]:
-    """The course, rider and full-course plan a replayed ride is compared with.
-
-    Course, rider, model, conditions and plan file default to those the replay's
-    metadata names (`SessionConfig.from_metadata`); the plan is the one the replay had
-    (`session.config.session_plan`: its plan file, else the plan cache's in its
-    conditions, solved and stored on a miss).
-
-    Raises:
-        IttError: no course or rider given or named, or the ride does not fit the course.
-        CourseError, RiderError, SolveError: the course, rider or plan is unusable.
-    """
-    # Heavy (CasADi): imported when a ride report is actually made.
-    from itt_planner.course.loader import load_course  # noqa: PLC0415
-    from itt_planner.model.rider import load_rider  # noqa: PLC0415
-    from itt_planner.session.config import SessionConfig, session_plan  # noqa: PLC0415
-
-    logged = SessionConfig.from_metadata(trace.metadata, str(trace.path))
-    course_spec = course_spec or trace.metadata.get("course")
-    rider_spec = rider_spec or trace.metadata.get("rider")
-    if not course_spec or not rider_spec:
-        raise IttError(f"{trace.path}: the log's metadata names no course or rider; pass "
-                       "--course and --rider")
-    course = load_course(course_spec)
-    if trace.advice_s_m.max() > course.length_m + 1.0:
-        raise IttError(f"{trace.path}: the ride reaches {trace.advice_s_m.max():.0f} m but "
-                       f"course {course.name!r} is {course.length_m:.0f} m long: wrong --course?")
-    rider = load_rider(rider_spec)
-    config = dataclasses.replace(logged, course=course_spec, rider=rider_spec,
-                                 plan_cache=str(cache_dir))
-    if config.plan and not Path(config.plan).is_file():
-        raise IttError(f"{trace.path}: the session was advised from plan {config.plan}, "
-                       "which is not here: the report compares the ride with that plan")
-    plan, _ = session_plan(config, course, rider)
-    return course, rider, plan

@@ -29,11 +29,11 @@ from itt_planner.ocp.horizon_settings import HorizonSettings
 from itt_planner.ocp.plan import Plan
 from itt_planner.ocp.solver import PlanStatus
 from itt_planner.session import replay as replay_mod
-from itt_planner.session.config import NO_WALL_TIME_LIMIT_S, SessionConfig
+from itt_planner.session.config import NO_WALL_TIME_LIMIT_S, SessionConfig, ride_setup
 from itt_planner.session.replay import ReplaySettings, parse_speed, replay
 from itt_planner.session.ride_session import RideSession
 from itt_planner.sim import hairpin_course, sensor_samples
-from itt_planner.view.ride_report import load_ride_trace, ride_setup
+from itt_planner.view.ride_report import load_ride_trace
 
 if TYPE_CHECKING:
     from itt_planner.view.rerun_log import RideRecorder
