@@ -86,7 +86,9 @@ def simple_bounds(model: SpatialModel, course: Course, nodes: np.ndarray, x0: np
     within the grip's steady lean, atan(`finish_mu_y`), and not changing: model.md
     leaves the end state free, and a plan whose finish is in a bend crossed the line
     falling (the loose bound, 69 deg, at 220 deg/s), as nothing after the line pays for
-    it. (A horizon window's end is tied to the plan by its soft terminal condition.)"""
+    it. The full-course problem gives it, and so do its windows on a long course
+    (`course_windows`: a window's end lies in the overlap the next one replaces); a
+    horizon window's end is tied to the plan by its soft terminal condition instead."""
     n = len(nodes)
     lbx, ubx = np.full((model.nx, n), -np.inf), np.full((model.nx, n), np.inf)
 
