@@ -8,16 +8,20 @@ only here.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import typer
 
 from itt_planner.errors import IttError
+
+if TYPE_CHECKING:
+    from itt_planner.model.conditions import Conditions
 
 app = typer.Typer(
     name="itt-planner",
@@ -28,6 +32,32 @@ app = typer.Typer(
 )
 
 JSON_OPTION = typer.Option(False, "--json", help="Print exactly one JSON object on stdout.")
+
+#: The day's grip, wind and air, as `plan` and `replay` take them (`day_conditions`).
+MU_OPTION = typer.Option(1.0, "--mu", help="Tyre-road grip (1.0 dry, ~0.6 wet).")
+WIND_KMH_OPTION = typer.Option(0.0, "--wind-kmh", help="Wind speed (km/h).")
+WIND_FROM_DEG_OPTION = typer.Option(0.0, "--wind-from-deg",
+                                    help="Direction the wind blows FROM (deg, 0 = North).")
+AIR_DENSITY_OPTION = typer.Option(
+    None, "--air-density-kgpm3",
+    help="Air density (kg/m^3); default the paper's 1.23 at any altitude (a warning "
+         "gives the course's own when it differs by over 3 %).")
+
+
+def day_conditions(mu: float, wind_kmh: float, wind_from_deg: float,
+                   air_density_kgpm3: float | None) -> Conditions:
+    """The conditions of the options above, in SI units (`Conditions.from_meteo`); the
+    paper's air density where none is given.
+
+    Raises:
+        RiderError: a value out of range (names the field).
+    """
+    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
+
+    conditions = Conditions.from_meteo(wind_kmh=wind_kmh, wind_from_deg=wind_from_deg, mu=mu)
+    if air_density_kgpm3 is None:
+        return conditions
+    return dataclasses.replace(conditions, air_density_kgpm3=air_density_kgpm3)
 
 
 @contextmanager

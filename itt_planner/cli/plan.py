@@ -12,14 +12,23 @@ and warns on stderr.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from pathlib import Path
 from typing import Any
 
 import typer
 
-from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit
+from itt_planner.cli._app import (
+    AIR_DENSITY_OPTION,
+    JSON_OPTION,
+    MU_OPTION,
+    WIND_FROM_DEG_OPTION,
+    WIND_KMH_OPTION,
+    app,
+    day_conditions,
+    emit,
+    errors_to_exit,
+)
 from itt_planner.units import MPS_TO_KMH
 
 #: Exit code of `plan` when the solver stopped without converging (module docstring).
@@ -89,14 +98,10 @@ def plan_cli(
     rider: str = typer.Option("paper", "--rider", help="Rider preset or YAML file."),
     model: str = typer.Option("3d", "--model", help="3d or 1d."),
     output: Path | None = typer.Option(None, "--output", "-o", help="Write the .plan.npz here."),
-    mu: float = typer.Option(1.0, "--mu", help="Tyre-road grip (1.0 dry, ~0.6 wet)."),
-    wind_kmh: float = typer.Option(0.0, "--wind-kmh", help="Wind speed (km/h)."),
-    wind_from_deg: float = typer.Option(0.0, "--wind-from-deg",
-                                        help="Direction the wind blows FROM (deg, 0 = North)."),
-    air_density_kgpm3: float | None = typer.Option(
-        None, "--air-density-kgpm3",
-        help="Air density (kg/m^3); default the paper's 1.23 at any altitude (a warning "
-             "gives the course's own when it differs by over 3 %)."),
+    mu: float = MU_OPTION,
+    wind_kmh: float = WIND_KMH_OPTION,
+    wind_from_deg: float = WIND_FROM_DEG_OPTION,
+    air_density_kgpm3: float | None = AIR_DENSITY_OPTION,
     max_time_s: float | None = typer.Option(
         None, "--max-time-s", help="Solver time budget (s); default scales with the course."),
     max_iter: int | None = typer.Option(
@@ -118,7 +123,7 @@ def plan_cli(
     """
     from itt_planner.course.loader import load_course  # noqa: PLC0415
     from itt_planner.errors import SolveError  # noqa: PLC0415
-    from itt_planner.model.conditions import Conditions, own_air_note  # noqa: PLC0415
+    from itt_planner.model.conditions import own_air_note  # noqa: PLC0415
     from itt_planner.model.rider import load_rider  # noqa: PLC0415
     from itt_planner.ocp.cache import solve_keeping_point  # noqa: PLC0415
     from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
@@ -129,9 +134,7 @@ def plan_cli(
             raise SolveError(f"--line {line!r}: 'centre', or 'shortest' with --model 1d "
                              "(the 3D model chooses its own line)", status="invalid_input")
         built = load_course(course)
-        conditions = Conditions.from_meteo(wind_kmh=wind_kmh, wind_from_deg=wind_from_deg, mu=mu)
-        if air_density_kgpm3 is not None:
-            conditions = dataclasses.replace(conditions, air_density_kgpm3=air_density_kgpm3)
+        conditions = day_conditions(mu, wind_kmh, wind_from_deg, air_density_kgpm3)
         settings = OcpSettings(max_cpu_time_s=max_time_s, max_iter=max_iter)
         # With its solver point: a node given this plan (`--plan`) re-solves warm. On the
         # shortest line the point is the line's NLP's, so none is kept.
@@ -139,8 +142,8 @@ def plan_cli(
                   if line == "shortest" else
                   solve_keeping_point(built, load_rider(rider), conditions, settings, model))
         result = plan_summary(solved, built) | {"line": line}
-        note = own_air_note(built.mean_altitude_m, conditions.air_density_kgpm3)
-        if air_density_kgpm3 is None and note:
+        if air_density_kgpm3 is None and (note := own_air_note(built.mean_altitude_m,
+                                                               conditions.air_density_kgpm3)):
             result["warnings"].append(note)
         if not result["success"] and allow_unconverged:
             result["allowed_unconverged"] = True

@@ -2,15 +2,23 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Any
 
 import typer
 
-from itt_planner.cli._app import JSON_OPTION, app, emit, errors_to_exit, progress_enabled
-from itt_planner.model.rider import PAPER_AIR_DENSITY_KGPM3
-from itt_planner.units import MPS_TO_KMH
+from itt_planner.cli._app import (
+    AIR_DENSITY_OPTION,
+    JSON_OPTION,
+    MU_OPTION,
+    WIND_FROM_DEG_OPTION,
+    WIND_KMH_OPTION,
+    app,
+    day_conditions,
+    emit,
+    errors_to_exit,
+    progress_enabled,
+)
 
 
 def _human_import(r: dict[str, Any]) -> str:
@@ -78,14 +86,10 @@ def replay_cli(
              "the finish, 1d-line before or where the 3d fails), 3d, or 1d-line (the 1D "
              "that knows the corners of the plan's line; the 3D where its plan is "
              "refused)."),
-    mu: float = typer.Option(1.0, "--mu", help="Tyre-road grip (1.0 dry, ~0.6 wet)."),
-    wind_kmh: float = typer.Option(0.0, "--wind-kmh", help="Wind speed (km/h)."),
-    wind_from_deg: float = typer.Option(0.0, "--wind-from-deg",
-                                        help="Direction the wind blows FROM (deg, 0 = North)."),
-    air_density_kgpm3: float = typer.Option(
-        PAPER_AIR_DENSITY_KGPM3, "--air-density-kgpm3",
-        help="Air density (kg/m^3); default the paper's 1.23 at any altitude (a warning "
-             "gives the course's own when it differs by over 3 %)."),
+    mu: float = MU_OPTION,
+    wind_kmh: float = WIND_KMH_OPTION,
+    wind_from_deg: float = WIND_FROM_DEG_OPTION,
+    air_density_kgpm3: float | None = AIR_DENSITY_OPTION,
     cache_dir: Path = typer.Option(Path(".itt_cache"), "--cache-dir",
                                    help="Where full-course plans are cached."),
     live_timing: bool = typer.Option(
@@ -118,13 +122,14 @@ def replay_cli(
         if resolve_model not in RESOLVE_MODELS:
             raise IttError(f"--course-resolve-model {resolve_model!r}: choose one of "
                            f"{', '.join(RESOLVE_MODELS)}")
+        day = day_conditions(mu, wind_kmh, wind_from_deg, air_density_kgpm3)
         config = SessionConfig(course=course, rider=rider, model=model,
                                plan_cache=str(cache_dir), horizon_m=horizon_m,
                                replan_period_s=replan_period, deterministic=not live_timing,
                                course_resolve_model=resolve_model, namespace=namespace,
-                               grip_mu=mu, wind_speed_mps=wind_kmh / MPS_TO_KMH,
-                               wind_from_rad=math.radians(wind_from_deg),
-                               air_density_kgpm3=air_density_kgpm3)
+                               grip_mu=day.mu_x, wind_speed_mps=day.wind_speed_mps,
+                               wind_from_rad=day.wind_from_rad,
+                               air_density_kgpm3=day.air_density_kgpm3)
         result = replay_ride(log, config, output=out, rrd=rrd, rerun_sinks=tuple(rerun),
                              settings=settings, progress=progress_enabled()).as_dict()
     emit(result, as_json, _human_replay)
