@@ -80,6 +80,9 @@ def replay_cli(
                                         help="Stamp time between replans (s)."),
     horizon_m: float = typer.Option(1000.0, "--horizon-m", help="Receding-horizon length (m)."),
     model: str = typer.Option("3d", "--model", help="Full-course plan model: 3d or 1d."),
+    plan: Path | None = typer.Option(
+        None, "--plan", help="Saved full-course plan (`plan -o`), as the node's `plan`; "
+                             "default: the cache's for this course, rider and day, or solved."),
     resolve_model: str = typer.Option(
         "auto", "--course-resolve-model",
         help="What a re-solve of the rest of the course solves: auto (3d within 20 km of "
@@ -124,6 +127,7 @@ def replay_cli(
                            f"{', '.join(RESOLVE_MODELS)}")
         day = day_conditions(mu, wind_kmh, wind_from_deg, air_density_kgpm3)
         config = SessionConfig(course=course, rider=rider, model=model,
+                               plan="" if plan is None else str(plan),
                                plan_cache=str(cache_dir), horizon_m=horizon_m,
                                replan_period_s=replan_period, deterministic=not live_timing,
                                course_resolve_model=resolve_model, namespace=namespace,

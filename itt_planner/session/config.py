@@ -20,6 +20,10 @@ from itt_msgs_py import DEFAULT_NAMESPACE
 from itt_planner.errors import IttError, SolveError
 from itt_planner.model.rider import PAPER_AIR_DENSITY_KGPM3
 
+#: A plan's finish within this of the course's is on the same course (a plan ends at the
+#: course's last point; a saved course or plan rounds nothing).
+_SAME_COURSE_M = 1.0
+
 if TYPE_CHECKING:
     from itt_planner.course.geometry import Course
     from itt_planner.live.engine import PacingEngine
@@ -131,8 +135,8 @@ def session_plan(config: SessionConfig, course: Course, rider: Rider
     the config's. A replay's report takes the same plan as the replay did.
 
     Raises:
-        SolveError: the plan file was solved in other conditions than the config asks
-            for (unless those are the defaults).
+        SolveError: the plan file is of another course, or was solved in other conditions
+            than the config asks for (unless those are the defaults).
     """
     # Heavy (CasADi): imported when a plan is actually needed.
     from itt_planner.ocp.cache import load_or_solve  # noqa: PLC0415
@@ -142,6 +146,7 @@ def session_plan(config: SessionConfig, course: Course, rider: Rider
     conditions = config.conditions()
     if config.plan:
         plan = Plan.load(config.plan)
+        _check_plan_course(plan, course, config.plan)
         return plan, _plan_conditions(plan, conditions, config.plan)
     return load_or_solve(course, rider, conditions, OcpSettings(), config.model,
                          cache_dir=Path(config.plan_cache)), conditions
@@ -187,6 +192,22 @@ def build_engine(config: SessionConfig) -> PacingEngine:
                                            model=config.course_resolve_model))
     return PacingEngine(course, rider, plan, conditions=conditions, planner=planner,
                         settings=settings)
+
+
+def _check_plan_course(plan: Plan, course: Course, path: str) -> None:
+    """Refuse a plan file solved on another course (another file, or the same file
+    trimmed, lapped or fitted otherwise): its distances would be read on this course's.
+
+    Raises:
+        SolveError: naming the file and both courses.
+    """
+    sha = plan.meta.get("course_sha256")
+    length_m = float(plan.s_m[-1])
+    if (sha and course.source_sha256 and sha != course.source_sha256) \
+            or abs(length_m - course.length_m) > _SAME_COURSE_M:
+        raise SolveError(f"plan {path} was solved on course {plan.meta.get('course', '?')} "
+                         f"({length_m:.0f} m), not on {course.name} ({course.length_m:.0f} m)",
+                         status="invalid_input")
 
 
 def _plan_conditions(plan: Plan, asked: Conditions, path: str) -> Conditions:

@@ -56,6 +56,12 @@ def test_a_given_plan_brings_its_conditions(tmp_path: Path) -> None:
     with pytest.raises(SolveError, match=r"windy\.plan\.npz was solved in"):
         build_engine(SessionConfig(course=str(saved), rider="typical", plan=str(path),
                                    model="1d", wind_speed_mps=2.0))
+    # A plan of another course (here 100 m longer) would be read on this one's distances.
+    longer = straight(700.0).save(tmp_path / f"longer{COURSE_SUFFIX}")
+    with pytest.raises(SolveError, match=r"windy\.plan\.npz was solved on course .*\(599 m\), "
+                                         r"not on .*\(699 m\)"):
+        build_engine(SessionConfig(course=str(longer), rider="typical", plan=str(path),
+                                   model="1d"))
 
 
 def test_a_session_plans_in_its_own_air_and_wind(tmp_path: Path) -> None:

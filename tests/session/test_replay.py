@@ -280,6 +280,28 @@ def test_cli_replay_plans_in_the_conditions_given(setup: dict[str, Any], tmp_pat
         cached[0].finish_time_s
 
 
+def test_cli_replay_advises_from_a_plan_file(setup: dict[str, Any], tmp_path: Path) -> None:
+    """`replay --plan` (the node's `plan`): the session rides the saved plan, in its own
+    conditions, and says so in its log; a plan of another course is refused by name."""
+    course = tmp_path / "hairpin.course.npz"
+    setup["course"].save(course)
+    windy = Conditions.from_meteo(wind_kmh=12.0, wind_from_deg=180.0)
+    plan_file = load_or_solve(setup["course"], setup["rider"], windy, OcpSettings(), "1d",
+                              cache_dir=tmp_path / "cache").save(tmp_path / "windy.plan.npz")
+    args = ["replay", str(setup["log"]), "--rider", "typical", "--model", "1d",
+            "--plan", str(plan_file), "--replan-period", "60", "--horizon-m", str(HORIZON_M),
+            "--cache-dir", str(tmp_path / "empty"), "--json"]
+    result = CliRunner().invoke(app, [*args, "--course", str(course),
+                                      "--out", str(tmp_path / "advice.mcap")])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["conditions"] == pytest.approx(dataclasses.asdict(windy))
+    assert load_ride_trace(tmp_path / "advice.mcap").metadata["plan"] == str(plan_file)
+    assert not (tmp_path / "empty").exists() or not list((tmp_path / "empty").rglob("*.npz"))
+    result = CliRunner().invoke(app, [*args, "--course", "verona-like"])
+    assert result.exit_code == 1, result.output
+    assert "windy.plan.npz was solved on course" in json.loads(result.stdout)["error"]
+
+
 def test_cli_replay_refuses_an_unknown_resolve_model(tmp_path: Path) -> None:
     """`--course-resolve-model` takes what `CourseReplanSettings.model` does: anything else
     is one JSON error naming the option, before any input is read."""
