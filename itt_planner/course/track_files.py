@@ -190,14 +190,29 @@ def _read_gpx(path: Path, data: bytes) -> Recording:
 
 
 def _read_tcx(path: Path, data: bytes) -> Recording:
-    """An activity, or a course (Garmin Connect's route export: `<Courses>`, which
-    tcxreader's `read` skips; its own trackpoint parser reads those points)."""
+    """An activity, a course (Garmin Connect's route export: `<Courses>`) or the bike leg
+    of a multisport session (a triathlon: `<MultiSportSession>`), the last two skipped by
+    tcxreader's `read`; its own trackpoint parser reads their points.
+
+    Raises:
+        CourseError: a multisport session without a Biking activity with positions.
+    """
     import xml.etree.ElementTree as ET  # noqa: PLC0415
 
     from tcxreader.tcx_track_point import TCXTrackPoint  # noqa: PLC0415
-    from tcxreader.tcxreader import GARMIN_XML_SCHEMA, TCXReader  # noqa: PLC0415
+    from tcxreader.tcxreader import GARMIN_XML_SCHEMA as NS  # noqa: PLC0415
+    from tcxreader.tcxreader import TCXReader  # noqa: PLC0415
 
     reader = TCXReader()
+
+    def points(track_points: Any) -> list[Any]:
+        out = []
+        for el in track_points:
+            tp = TCXTrackPoint(tpx_ext={})
+            reader.trackpoint_parser(tp, el)
+            out.append(tp)
+        return out
+
     xml = xml_text(data)
     # `read` takes a path, which it hands to ElementTree's `parse`: a file object works too.
     # All trackpoints: its default drops those before the first fix and after the last,
@@ -206,11 +221,11 @@ def _read_tcx(path: Path, data: bytes) -> Recording:
     tps = ex.trackpoints or []
     if not tps:
         root = ET.fromstring(xml)
-        for el in root.iterfind(f"{GARMIN_XML_SCHEMA}Courses/{GARMIN_XML_SCHEMA}Course/"
-                                f"{GARMIN_XML_SCHEMA}Track/{GARMIN_XML_SCHEMA}Trackpoint"):
-            tp = TCXTrackPoint(tpx_ext={})
-            reader.trackpoint_parser(tp, el)
-            tps.append(tp)
+        tps = points(root.iterfind(f"{NS}Courses/{NS}Course/{NS}Track/{NS}Trackpoint"))
+        legs = [(act.get("Sport", "?"), points(act.iterfind(f"{NS}Lap/{NS}Track/{NS}Trackpoint")))
+                for act in root.iterfind(f".//{NS}MultiSportSession//{NS}Activity")]
+        if not tps and legs:
+            tps = _bike_leg(path, legs)
     return Recording(
         path=path, sha256=file_sha256(path),
         lat_deg=_arr([tp.latitude for tp in tps]), lon_deg=_arr([tp.longitude for tp in tps]),
@@ -221,6 +236,25 @@ def _read_tcx(path: Path, data: bytes) -> Recording:
         cadence_rpm=_opt([tp.cadence for tp in tps]),
         device=str(getattr(ex, "device", "") or ""),
     )
+
+
+def _bike_leg(path: Path, legs: list[tuple[str, list[Any]]]) -> list[Any]:
+    """The trackpoints of a multisport session's Biking activity with the most positions
+    (a duathlon has one; a file of several days' sessions may have more).
+
+    Raises:
+        CourseError: no Biking activity has 3 positions or more (naming every activity).
+    """
+    def fixes(tps: list[Any]) -> int:
+        return sum(tp.latitude is not None and tp.longitude is not None for tp in tps)
+
+    bikes = [tps for sport, tps in legs if sport == "Biking" and fixes(tps) >= 3]
+    if not bikes:
+        found = "; ".join(f"{sport}: {len(tps)} trackpoints, {fixes(tps)} with a position"
+                          for sport, tps in legs)
+        raise CourseError(f"{path}: a multisport session without a Biking activity with GPS "
+                          f"positions ({found})")
+    return max(bikes, key=fixes)
 
 
 def _read_fit(path: Path, data: bytes) -> Recording:

@@ -4,6 +4,7 @@ same as Strava's bulk export writes them (gzipped; XML after leading spaces)."""
 from __future__ import annotations
 
 import gzip
+import re
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
@@ -197,3 +198,32 @@ def test_a_gzipped_route_loads_as_a_course(tmp_path: Path) -> None:
     path.write_bytes(gzip.compress(gpx.encode()))
     course = load_course(path)
     assert course.name == "route" and 1950 < course.length_m < 2050
+
+
+def test_a_multisport_tcx_gives_its_bike_leg(tmp_path: Path) -> None:
+    """A triathlon's TCX (Garmin's `MultiSportSession`: FirstSport, NextSport...) was "no
+    track points found" (tcxreader reads `Activities/Activity` only): its bike leg is the
+    ride. Without a Biking activity with positions (a Forerunner 305's file of runs and
+    indoor rides, GoldenCheetah's tests) the error names every activity."""
+    ride = _strava_tcx(50).strip()
+    head, body = ride.split("<Activities>")
+    bike = body.split("</Activities>")[0]
+    run = bike.replace('Sport="Biking"', 'Sport="Running"').replace("<Watts>", "<Watts>1")
+    indoor = re.sub(r"<Position>.*?</Position>", "", bike)
+
+    def session(*legs: str) -> str:
+        sports = "".join(f"<{'FirstSport' if i == 0 else 'NextSport'}>{leg}"
+                         f"</{'FirstSport' if i == 0 else 'NextSport'}>"
+                         for i, leg in enumerate(legs))
+        return (f"{head}<Activities><MultiSportSession>{sports}</MultiSportSession>"
+                "</Activities></TrainingCenterDatabase>")
+
+    path = tmp_path / "triathlon.tcx"
+    path.write_text(session(run, bike, run))
+    rec = read_recording(path)
+    assert len(rec) == 50 and rec.power_w is not None and rec.power_w[0] == 250
+    path.write_text(session(run, indoor))
+    with pytest.raises(CourseError, match=r"triathlon\.tcx: a multisport session without a "
+                       r"Biking activity with GPS positions \(Running: 50 trackpoints, 50 "
+                       r"with a position; Biking: 50 trackpoints, 0 with a position\)"):
+        read_recording(path)
