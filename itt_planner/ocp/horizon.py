@@ -102,7 +102,8 @@ Design choices:
   failure ("Unresolved_Dynamics"), whatever IPOPT said.
 - Windows of at most `max_window_s` of the plan's riding (never under `min_window_m`):
   a fixed node count over 1 km up a slow climb made intervals of ~4 s, stiff and failing
-  (`HorizonSettings`).
+  (`HorizonSettings`); and of at most `max_density_ratio` times the nodes the mesh asks
+  for: 1 km of switchbacks asked for three times the window's nodes.
 - Hard caps: `max_iter` and `max_wall_time_s` (per replan, shared as above and with the
   rescue, `rescue_share`); a failure
   returns `success=False` with the solver's raw status per attempt and never raises.

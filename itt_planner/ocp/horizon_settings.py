@@ -38,6 +38,15 @@ class HorizonSettings:
             (28 m/s up a 13 % grade); over 400 m, 37 of 42 of those replans converged,
             median 18 iterations (bench/RESULTS.md). 120 s leaves every window at
             >= 8.3 m/s (30 km/h) its full `horizon_m`.
+        max_density_ratio: the window also ends where the mesh would ask for this many
+            times `n_intervals` (its spacing, `mesh.target_spacing`: ~1 m in a hairpin),
+            but not closer than `min_window_m`; 0: no such end. Why: the node count is
+            fixed, so a 1 km window through six 15-20 m switchbacks (a Suunto watch's GPX,
+            161-207 intervals asked) had intervals of 10-15 m through each hairpin, and a
+            slow rider's replans ran to the iteration cap for 200 m at a time: 6.5 % of
+            the advice were fallbacks, 4.1 % with this end (bench/RESULTS.md). A road
+            course's 1 km asks at most 81 (St John's) to 138 (Tokyo's lap): 2x ends 0-5 %
+            of their windows early; 1.5x would end 13-28 %.
         n_intervals: fixed number of shooting intervals over the window.
         substeps: RK4 substeps per interval ...
         stiff_substeps, stiff_ratio: ... and in a window where one step per interval
@@ -103,6 +112,7 @@ class HorizonSettings:
     horizon_m: float = 1000.0
     max_window_s: float = 120.0
     min_window_m: float = 200.0
+    max_density_ratio: float = 2.0
     n_intervals: int = 60
     substeps: int = 1
     stiff_substeps: int = 2

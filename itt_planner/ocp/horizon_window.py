@@ -45,7 +45,7 @@ class HorizonWindow:
 
         Equal steps of the cumulative node density `1/h`, with `h` the course's mesh
         spacing capped by `h_min_m + near_grade * (distance ahead)`. A window cut short
-        by the finish (or by `max_window_s`) has more nodes than that density asks for:
+        by the finish (or by `max_window_s`) may have more nodes than that density asks for:
         the surplus is spread evenly (an added uniform density) instead of shrinking
         every interval alike, which left 0.85 m first intervals in a 150 m window, too
         short to steer from a measured line (a grip violation of 3x at the first node
@@ -58,10 +58,14 @@ class HorizonWindow:
             end = min(end, max(float(np.interp(t_end, plan.t_s, plan.s_m)),
                                s_m + st.min_window_m))
         s_m = min(s_m, end - 1.0)
-        grid = np.concatenate([[s_m], c.s_m[(c.s_m > s_m) & (c.s_m < end)], [end]])
-        h = np.minimum(np.interp(grid, c.s_m, self._spacing),
-                       st.h_min_m + st.near_grade * (grid - s_m))
-        dens = 1.0 / h
+        grid, dens = self._density(s_m, end)
+        if st.max_density_ratio > 0:  # no more bends than the nodes can follow
+            cum = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1])
+                                                   * np.diff(grid))])
+            asked = st.max_density_ratio * st.n_intervals
+            if cum[-1] > asked:
+                end = max(float(np.interp(asked, cum, grid)), min(s_m + st.min_window_m, end))
+                grid, dens = self._density(s_m, end)
         if end - s_m < st.horizon_m - 1.0:
             surplus = st.n_intervals - float(np.sum(0.5 * (dens[1:] + dens[:-1]) * np.diff(grid)))
             dens = dens + max(surplus, 0.0) / (end - s_m)
@@ -69,6 +73,15 @@ class HorizonWindow:
         nodes: np.ndarray = np.interp(np.linspace(0.0, cum[-1], st.n_intervals + 1), cum, grid)
         nodes[0], nodes[-1] = s_m, end
         return nodes
+
+    def _density(self, s_m: float, end_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """The course grid over [`s_m`, `end_m`] and the node density (1/m) the mesh asks
+        for on it: the course's spacing, finer near the rider (`near_grade`)."""
+        st, c = self.settings, self.course
+        grid = np.concatenate([[s_m], c.s_m[(c.s_m > s_m) & (c.s_m < end_m)], [end_m]])
+        h = np.minimum(np.interp(grid, c.s_m, self._spacing),
+                       st.h_min_m + st.near_grade * (grid - s_m))
+        return grid, 1.0 / h
 
     def initial_state(self, state: RiderState, s_m: float) -> np.ndarray:
         """State vector of the horizon model from the estimate (steering: from the plan)."""

@@ -306,6 +306,32 @@ def test_window_capped_by_the_plans_riding_time(plan: Plan) -> None:
         assert nodes[-1] == pytest.approx(end)
 
 
+def test_window_capped_by_the_bends_its_nodes_can_follow(plan: Plan) -> None:
+    """A window ends where the mesh would ask for `max_density_ratio` times its nodes (a
+    run of switchbacks), never closer than `min_window_m`; 0 keeps the full `horizon_m`."""
+    s0, model, rider = 450.0, build_3d_steady_lean(), PRESETS["paper"]
+
+    def window(**kwargs: float) -> tuple[HorizonWindow, np.ndarray]:
+        settings = HorizonSettings(horizon_m=500.0, max_window_s=0.0,
+                                   **kwargs)  # type: ignore[arg-type]
+        win = HorizonWindow(model, COURSE, rider, plan, Conditions(), settings)
+        nodes = win.nodes(s0)
+        assert len(nodes) == settings.n_intervals + 1 and np.all(np.diff(nodes) > 0)
+        return win, nodes
+
+    win, nodes = window(max_density_ratio=0.0)
+    assert nodes[-1] == pytest.approx(s0 + 500.0)
+    grid, dens = win._density(s0, s0 + 500.0)
+    asked = float(np.sum(0.5 * (dens[1:] + dens[:-1]) * np.diff(grid)))
+    n = win.settings.n_intervals
+    win, nodes = window(max_density_ratio=0.9 * asked / n)
+    assert nodes[-1] < s0 + 500.0
+    grid, dens = win._density(s0, float(nodes[-1]))
+    to_end = float(np.sum(0.5 * (dens[1:] + dens[:-1]) * np.diff(grid)))
+    assert to_end == pytest.approx(0.9 * asked, rel=0.01)
+    assert window(max_density_ratio=0.01, min_window_m=120.0)[1][-1] == pytest.approx(s0 + 120.0)
+
+
 def test_failure_returns_status_not_exception(plan: Plan) -> None:
     tight = HorizonPlanner(COURSE, PRESETS["paper"], plan,
                            settings=HorizonSettings(horizon_m=500.0, max_iter=1))
