@@ -114,9 +114,9 @@ class Track:
         Measured on positions smoothed by a quadratic over 5 fixes (Savitzky-Golay) when
         they are a dense GPS log: summed raw steps gain ~sigma^2/step per fix from GPS
         noise, the smoothed ~1/5 of it, and a local quadratic keeps a bend's curvature
-        where a plain average over 5 fixes cuts it. The plain average measured a Suunto watch's
-        8.55 km of 2 s fixes through 15-20 m hairpins (its own distance 8.55
-        km) as 7.89 km (-7.7 %); the quadratic 8.51 km. Against the devices' distances it
+        where a plain average over 5 fixes cuts it. The plain average measured a Suunto
+        watch's 8.55 km of 2 s fixes through 15-20 m hairpins (its own distance 8.55 km)
+        as 7.89 km (-7.7 %); the quadratic 8.51 km. Against the devices' distances it
         is -0.2 % to +0.9 % on the real rides of `../shared/data` (Ardennes +0.09 %, St
         John's +0.21 %, Zwift Bologna -0.24 %, Sauerland +0.85 %); a stop-go city ride's
         standing wander adds more (Shanghai +2.5 %, the average +1.7 %). Other fixes are
