@@ -248,12 +248,13 @@ def fit_aero(rides: list[RideSeries], st: AeroSettings) -> AeroFit:
                 "(a virtual ride), or the mass or the power meter is wrong")
     if rmse_free < st.simulated_rmse_m and not st.allow_simulated:
         raise CalibrationError(
-            f"{names}: the speed is simulated, not measured: power, speed and altitude obey "
-            f"one power balance to {rmse_free:.2f} m RMS of virtual elevation over "
+            f"{names}: the speed is simulated, not measured (or the power is): power, speed and "
+            f"altitude obey one power balance to {rmse_free:.2f} m RMS of virtual elevation over "
             f"{len(des.spans)} stretches (CdA {cda[0]:.3f} m^2, mass {mass:.0f} kg), tighter "
             f"than any real altimeter and wind allow (>= {st.simulated_rmse_m} m). This is a "
-            "virtual ride (Zwift and similar): its speed is the game's physics, not the rider's; "
-            "--allow-virtual fits the game's rider anyway")
+            "virtual ride (Zwift and similar: its speed is the game's physics, not the "
+            "rider's; --allow-virtual fits the game's rider anyway), or an app's power "
+            "estimated from speed and altitude, with no power meter (a phone app's 'power')")
     boot = [prob.unpack(b) for b in _bootstrap(prob, x, len(des.spans), st)]
     mass_sd, crr_sd = (float(np.std(np.array([float(b[i]) for b in boot]), ddof=1))
                        for i in (0, 1))

@@ -177,10 +177,13 @@ def test_stop_and_go_ride_with_a_drifting_altitude(data_file: Callable[[str], Pa
 
 
 def test_virtual_ride_is_refused_as_simulated(data_file: Callable[[str], Path]) -> None:
-    """Zwift's speed obeys one power balance too exactly for a real road: refused."""
+    """Zwift's speed obeys one power balance too exactly for a real road: refused. So
+    does a phone app's power estimated from speed and altitude (Urban Biker's GPX from
+    GoldenCheetah's tests, 0.20 m): the refusal names both."""
     path = data_file("rides/zwift_bologna_tt_virtual.tcx")
     result = calibrate([path], CalibrationOptions())
     assert "speed is simulated" in result.refusals["aero"]
+    assert "an app's power estimated from speed and altitude" in result.refusals["aero"]
     forced = calibrate([path], CalibrationOptions(allow_virtual=True))
     assert forced.aero is not None and forced.aero.rmse_m < 0.5
 
