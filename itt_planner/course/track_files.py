@@ -19,7 +19,7 @@ import gzip
 import hashlib
 import io
 import zlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -63,7 +63,6 @@ class Recording:
     #: The head unit's air temperature (C), for the air density.
     temperature_c: np.ndarray | None = None
     device: str = ""
-    meta: dict[str, str] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.lat_deg)
