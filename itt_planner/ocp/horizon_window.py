@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
 
 from itt_planner.course.geometry import Course
 from itt_planner.model.conditions import GRAVITY_MPS2, Conditions
@@ -58,30 +59,26 @@ class HorizonWindow:
             end = min(end, max(float(np.interp(t_end, plan.t_s, plan.s_m)),
                                s_m + st.min_window_m))
         s_m = min(s_m, end - 1.0)
-        grid, dens = self._density(s_m, end)
-        if st.max_density_ratio > 0:  # no more bends than the nodes can follow
-            cum = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1])
-                                                   * np.diff(grid))])
-            asked = st.max_density_ratio * st.n_intervals
-            if cum[-1] > asked:
-                end = max(float(np.interp(asked, cum, grid)), min(s_m + st.min_window_m, end))
-                grid, dens = self._density(s_m, end)
-        if end - s_m < st.horizon_m - 1.0:
-            surplus = st.n_intervals - float(np.sum(0.5 * (dens[1:] + dens[:-1]) * np.diff(grid)))
-            dens = dens + max(surplus, 0.0) / (end - s_m)
-        cum = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * np.diff(grid))])
+        grid, cum = self._asked(s_m, end)
+        asked = st.max_density_ratio * st.n_intervals
+        if 0 < asked < cum[-1]:  # no more bends than the nodes can follow
+            end = max(float(np.interp(asked, cum, grid)), min(s_m + st.min_window_m, end))
+            grid, cum = self._asked(s_m, end)
+        if end - s_m < st.horizon_m - 1.0:  # the surplus as an added uniform density
+            cum = cum + max(st.n_intervals - float(cum[-1]), 0.0) * (grid - s_m) / (end - s_m)
         nodes: np.ndarray = np.interp(np.linspace(0.0, cum[-1], st.n_intervals + 1), cum, grid)
         nodes[0], nodes[-1] = s_m, end
         return nodes
 
-    def _density(self, s_m: float, end_m: float) -> tuple[np.ndarray, np.ndarray]:
-        """The course grid over [`s_m`, `end_m`] and the node density (1/m) the mesh asks
-        for on it: the course's spacing, finer near the rider (`near_grade`)."""
+    def _asked(self, s_m: float, end_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """The course grid over [`s_m`, `end_m`] and the number of intervals the mesh asks
+        for from `s_m` to each point: the integral of the node density `1/h`, with the
+        course's spacing `h` finer near the rider (`near_grade`)."""
         st, c = self.settings, self.course
         grid = np.concatenate([[s_m], c.s_m[(c.s_m > s_m) & (c.s_m < end_m)], [end_m]])
         h = np.minimum(np.interp(grid, c.s_m, self._spacing),
                        st.h_min_m + st.near_grade * (grid - s_m))
-        return grid, 1.0 / h
+        return grid, cumulative_trapezoid(1.0 / h, grid, initial=0)
 
     def initial_state(self, state: RiderState, s_m: float) -> np.ndarray:
         """State vector of the horizon model from the estimate (steering: from the plan)."""
