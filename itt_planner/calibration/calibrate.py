@@ -20,7 +20,7 @@ from typing import Any, cast
 from itt_planner.calibration.aero import AeroFit, AeroSettings, fit_aero
 from itt_planner.calibration.cornering import CorneringFit, fit_cornering
 from itt_planner.calibration.elevation_check import check_ride_altitude
-from itt_planner.calibration.power_curve import CpFit, fit_cp, mmp_curve
+from itt_planner.calibration.power_curve import CpFit, fit_cp, mmp_curve, submaximal_warning
 from itt_planner.calibration.ride_data import (
     CalibrationError,
     RideSeries,
@@ -64,7 +64,8 @@ class CalibrationOptions:
 
 @dataclass(eq=False)
 class CalibrationResult:
-    """Every fit, every refusal (estimator -> reason) and the resulting rider."""
+    """Every fit, every refusal (estimator -> reason), every fit kept with a warning
+    (estimator -> why its values may not be the rider's) and the resulting rider."""
 
     sources: list[str]
     rider: Rider
@@ -75,6 +76,7 @@ class CalibrationResult:
     cp_3p: CpFit | None = None
     cornering: CorneringFit | None = None
     refusals: dict[str, str] = field(default_factory=dict)
+    warnings: dict[str, str] = field(default_factory=dict)
     options: CalibrationOptions = CalibrationOptions()
     setup_names: list[str] = field(default_factory=list)
     setup_of_ride: list[int] = field(default_factory=list)
@@ -99,6 +101,7 @@ class CalibrationResult:
             "cornering": None if self.cornering is None else self.cornering.as_dict(),
             "mmp_w": {str(k): round(v, 1) for k, v in sorted(self.mmp_w.items())},
             "refusals": dict(self.refusals),
+            "warnings": dict(self.warnings),
             "temperature_c": [r.temperature_c for r in self.rides],
             # Smart recording's gaps filled at 1 s, per ride (ride_import.ridden_gaps).
             "filled_s": [r.filled_s for r in self.rides],
@@ -180,6 +183,8 @@ def calibrate(rides: Sequence[str | Path | Recording],
             setattr(result, f"cp_{model}", fit_cp(result.mmp_w, model))
         except CalibrationError as err:
             result.refusals[f"cp_{model}"] = str(err)
+    if result.cp_2p is not None and (why := submaximal_warning(result.cp_2p, result.mmp_w)):
+        result.warnings["cp_2p"] = why
     try:
         result.cornering = fit_cornering(series, courses or ride_courses(series, options.course))
     except (CalibrationError, CourseError) as err:
@@ -262,6 +267,7 @@ def rider_yaml(result: CalibrationResult) -> str:
               for name, r in result.setup_riders().items()]
     lines = [f"{YAML_HEADER}{', '.join(result.sources)}", *winds, *setups,
              *(f"# refused {k}: {v}" for k, v in result.refusals.items()),
+             *(f"# warning {k}: {v}" for k, v in result.warnings.items()),
              f"preset: {opts.preset}"]
     for name in fitted:
         if name not in rider_fields():

@@ -21,6 +21,12 @@ built on it); the 3-parameter figures are reported beside them. A ride whose eff
 were not maximal gives a curve below the rider's capacity, so CP and W' are lower
 bounds; several rides (the best of each duration) tighten them. Refused: fewer than
 4 durations of the range in the rides (too short), or a fit without a positive CP and W'.
+
+A W' outside what riders have (`W_PRIME_PLAUSIBLE_J`) is kept but warned about
+(`submaximal_warning`): an evenly paced time trial or a steady ride has a flat curve from
+2 to 20 min, so the fit puts CP near the steady power and W' near nothing (the Zwift
+Bologna TT: CP 292 W, W' 2.6 kJ; MMP(2 min) 8 % over MMP(20 min) where a rider's
+maximal efforts give 20-50 %).
 """
 
 from __future__ import annotations
@@ -42,6 +48,9 @@ RANGE_2P_S = (120.0, 1200.0)
 RANGE_3P_S = (10.0, 1200.0)
 #: An MMP point further than this below a fit is a piece of a longer effort (see doc).
 _ENVELOPE_TOL = 0.03
+#: W' (J) trained cyclists' maximal tests give (about 6-40 kJ in the CP literature:
+#: Jones et al. 2010, Skiba et al. 2012); outside it the curve's efforts were not maximal.
+W_PRIME_PLAUSIBLE_J = (6_000.0, 40_000.0)
 
 
 @dataclass(frozen=True)
@@ -136,6 +145,25 @@ def fit_cp(mmp: dict[int, float], model: str = "2p") -> CpFit:
             break
         kept = above
     return fit
+
+
+def submaximal_warning(fit: CpFit, mmp: dict[int, float]) -> str | None:
+    """Why `fit`'s CP and W' are not the rider's, when its W' is outside
+    `W_PRIME_PLAUSIBLE_J`; None when it is inside."""
+    lo, hi = W_PRIME_PLAUSIBLE_J
+    if lo <= fit.w_prime_j <= hi:
+        return None
+    first, last = fit.durations_s[0], fit.durations_s[-1]
+    rise = mmp[first] / mmp[last] - 1.0
+    if fit.w_prime_j < lo:
+        why = ("the rides hold no maximal effort shorter than their steady ones, so W' is a "
+               "lower bound and CP may be above the rider's (set by the steady power)")
+    else:
+        why = "the short efforts were maximal and the long ones not, so CP is a lower bound"
+    return (f"W' {fit.w_prime_j / 1000:.1f} kJ is outside the {lo / 1000:.0f}-{hi / 1000:.0f} "
+            f"kJ of riders' maximal tests (best {first} s power {100 * rise:.0f} % above the "
+            f"best {last} s): {why}; calibrate CP and W' on rides with all-out efforts of "
+            f"2-5 and 10-20 min")
 
 
 def _fit(mmp: dict[int, float], durations: tuple[int, ...], model: str) -> CpFit:

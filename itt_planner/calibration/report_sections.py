@@ -143,7 +143,8 @@ def calibration_summary(cal: CalibratedRiderFile, rider: Rider, plan: Plan | Non
     values = {k: {"value": v, **({"note": cal.notes[k]} if k in cal.notes else {})}
               for k, v in cal.values.items() if k in fields and k != "name"}
     out: dict[str, Any] = {"file": str(cal.path), "rides": list(cal.sources), "values": values,
-                           "conditions": list(cal.conditions), "refusals": dict(cal.refusals)}
+                           "conditions": list(cal.conditions), "refusals": dict(cal.refusals),
+                           "warnings": dict(cal.warnings)}
     planned = plan.meta.get("rider") if plan is not None else None
     if isinstance(planned, dict):
         out["plan_rider_differs"] = {
@@ -165,6 +166,7 @@ def calibration_section(summary: dict[str, Any]) -> ReportSection:
         rows[name] = f"{v['value']}" + (f"  ({v['note']})" if "note" in v else "")
     rows.update({f"refused {k}": f"{v} (the preset's value kept)"
                  for k, v in summary["refusals"].items()})
+    rows.update({f"warning {k}": v for k, v in summary.get("warnings", {}).items()})
     if summary["conditions"]:
         rows["conditions_of_the_rides"] = summary["conditions"]
     if "plan_rider_differs" in summary:

@@ -22,6 +22,7 @@ from itt_planner.calibration.ride_data import CalibrationError
 #: A field line with its note: `name: value  # note`.
 _FIELD_NOTE = re.compile(r"^(\w+):\s*(.*?)\s+#\s?(.*)$")
 _REFUSED = "# refused "
+_WARNING = "# warning "
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,7 @@ class CalibratedRiderFile:
         conditions: the comment lines about the rides, not the rider (the day's wind per
             ride, the CdA per setup), without the leading `# `.
         refusals: estimator -> why it refused (its field kept the preset's value).
+        warnings: estimator -> why its fitted values may not be the rider's.
     """
 
     path: Path
@@ -42,6 +44,7 @@ class CalibratedRiderFile:
     notes: dict[str, str]
     conditions: tuple[str, ...]
     refusals: dict[str, str]
+    warnings: dict[str, str]
 
 
 def read_calibrated_rider(path: str | Path) -> CalibratedRiderFile | None:
@@ -71,13 +74,18 @@ def read_calibrated_rider(path: str | Path) -> CalibratedRiderFile | None:
     notes: dict[str, str] = {}
     conditions: list[str] = []
     refusals: dict[str, str] = {}
+    warnings: dict[str, str] = {}
     for line in lines[1:]:
         if line.startswith(_REFUSED):
             name, _, reason = line[len(_REFUSED):].partition(": ")
             refusals[name] = reason
+        elif line.startswith(_WARNING):
+            name, _, reason = line[len(_WARNING):].partition(": ")
+            warnings[name] = reason
         elif line.startswith("#"):
             conditions.append(line.lstrip("# "))
         elif match := _FIELD_NOTE.match(line):
             notes[match.group(1)] = match.group(3)
     sources = tuple(lines[0][len(YAML_HEADER):].split(", "))
-    return CalibratedRiderFile(path, sources, values, notes, tuple(conditions), refusals)
+    return CalibratedRiderFile(path, sources, values, notes, tuple(conditions), refusals,
+                               warnings)

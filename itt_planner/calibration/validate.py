@@ -202,7 +202,7 @@ def holdout(rides: list[str | Path], courses: list[Course],
                     "model": phys["model"], "conditions": phys["conditions"],
                     "cda_m2": round(fit.rider.drag_area_m2, 4),
                     "mass_kg": round(fit.rider.mass_kg, 1),
-                    "refusals": fit.refusals,
+                    "refusals": fit.refusals, "warnings": fit.warnings,
                     **{k2: phys[k2] for k2 in ("finish_error_pct", "mae_kmh", "rmse_kmh",
                                                "bias_kmh", "share_within_2kmh",
                                                "noise_floor_kmh")}})

@@ -37,6 +37,7 @@ def _human_calibration(r: dict[str, Any]) -> str:
         lines += [f"  setup {name}: CdA {row.get('cda_m2')} +- {row.get('cda_std_m2')} m^2 "
                   f"({len(row['rides'])} rides)" for name, row in r["setups"].items()]
     lines += [f"  REFUSED {k}: {v}" for k, v in r["refusals"].items()]
+    lines += [f"  WARNING {k}: {v}" for k, v in r["warnings"].items()]
     if r.get("output"):
         lines.append(f"  wrote {', '.join([r['output'], *r.get('output_per_setup', [])])}")
     return "\n".join(lines)

@@ -43,6 +43,7 @@ def _human_calibration(cal: dict[str, Any] | None) -> list[str]:
     lines += [f"  {k} {v['value']}" + (f"  ({v['note']})" if "note" in v else "")
               for k, v in cal["values"].items()]
     lines += [f"  refused {k}: {v}" for k, v in cal["refusals"].items()]
+    lines += [f"  warning {k}: {v}" for k, v in cal.get("warnings", {}).items()]
     if cal.get("plan_rider_differs"):
         lines.append(f"  the plan was solved for other values: {cal['plan_rider_differs']}")
     return lines

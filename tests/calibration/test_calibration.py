@@ -22,6 +22,7 @@ from itt_planner.calibration import (
     write_rider,
 )
 from itt_planner.calibration.calibrate import CalibrationResult, load_rides, write_setup_riders
+from itt_planner.calibration.power_curve import submaximal_warning
 from itt_planner.calibration.ride_data import fill_sparse_records
 from itt_planner.course.geometry import Course
 from itt_planner.course.track_files import Recording
@@ -56,6 +57,17 @@ def test_cp_models_recover_an_exact_curve() -> None:
     assert fit.cp_w == pytest.approx(300.0, rel=1e-3)
     assert fit.w_prime_j == pytest.approx(20000.0, rel=1e-3)
     assert fit.durations_s[0] >= 120
+
+
+def test_a_flat_power_curve_warns_that_cp_and_w_prime_are_not_the_riders() -> None:
+    """An evenly paced time trial's curve (W' 2.6 kJ, as the Zwift Bologna TT's) is
+    fitted and warned about; a rider's maximal curve (W' 20 kJ) is not."""
+    flat = {d: 292.0 + 2600.0 / d for d in (120, 180, 300, 480, 600, 900, 1200)}
+    why = submaximal_warning(fit_cp(flat, "2p"), flat)
+    assert why is not None and "W' 2.6 kJ" in why and "no maximal effort" in why
+    assert "all-out efforts" in why
+    maximal = {d: 300.0 + 20000.0 / d for d in (120, 180, 300, 480, 600, 900, 1200)}
+    assert submaximal_warning(fit_cp(maximal, "2p"), maximal) is None
 
 
 def test_cp_refuses_a_short_ride() -> None:
@@ -184,6 +196,8 @@ def test_virtual_ride_is_refused_as_simulated(data_file: Callable[[str], Path]) 
     result = calibrate([path], CalibrationOptions())
     assert "speed is simulated" in result.refusals["aero"]
     assert "an app's power estimated from speed and altitude" in result.refusals["aero"]
+    # An evenly paced TT: CP and W' are fitted, with a warning (W' 2.6 kJ).
+    assert result.cp_2p is not None and "no maximal effort" in result.warnings["cp_2p"]
     forced = calibrate([path], CalibrationOptions(allow_virtual=True))
     assert forced.aero is not None and forced.aero.rmse_m < 0.5
 

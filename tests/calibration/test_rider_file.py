@@ -21,7 +21,8 @@ def cp_only_result() -> CalibrationResult:
     rider = dataclasses.replace(PRESETS["paper"], name="me", critical_power_w=cp.cp_w,
                                 w_prime_j=cp.w_prime_j)
     return CalibrationResult(sources=["a.fit", "b.fit"], rider=rider, rides=[], mmp_w=mmp,
-                             cp_2p=cp, refusals={"aero": "too short", "cornering": "no corner"})
+                             cp_2p=cp, refusals={"aero": "too short", "cornering": "no corner"},
+                             warnings={"cp_2p": "W' 1.0 kJ is outside"})
 
 
 def test_calibrated_rider_reads_back(tmp_path: Path) -> None:
@@ -32,6 +33,8 @@ def test_calibrated_rider_reads_back(tmp_path: Path) -> None:
     assert cal is not None
     assert cal.sources == ("a.fit", "b.fit")
     assert cal.refusals == {"aero": "too short", "cornering": "no corner"}
+    assert cal.warnings == {"cp_2p": "W' 1.0 kJ is outside"}
+    assert not any(line.startswith("warning") for line in cal.conditions)
     # The values are the rider `--rider` loads; the notes say where they came from.
     rider = load_rider(str(path))
     assert cal.values["critical_power_w"] == rider.critical_power_w
