@@ -3,9 +3,9 @@ CSV, and the routes of web maps, KML/KMZ and GeoJSON, in `map_files`; each also 
 into one record type.
 
 Courses use only the positions; ride import also uses the stamps, speed and power.
-Parsing is left to well-kept libraries (gpxpy, tcxreader, fitdecode); this module only
-maps their records onto `Recording` arrays and turns their failures into `CourseError`
-naming the file.
+Parsing is left to well-kept libraries (gpxpy, tcxreader, fitdecode in `fit_records`);
+this module only maps their records onto `Recording` arrays and turns their failures into
+`CourseError` naming the file.
 
 Two quirks of real exports are read as their authors meant: Strava's bulk export gzips
 its files (`123.fit.gz`, `123.tcx.gz`) and writes TCX (and some GPX) with spaces before
@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from itt_planner.course.fit_records import read_fit_activity
 from itt_planner.course.map_files import (
     SENSOR_NAMES,
     MapRoute,
@@ -257,20 +258,9 @@ def _bike_leg(path: Path, legs: list[tuple[str, list[Any]]]) -> list[Any]:
 
 
 def _read_fit(path: Path, data: bytes) -> Recording:
-    import fitdecode  # noqa: PLC0415
-
-    rows: list[dict[str, Any]] = []
-    device = ""
-    with fitdecode.FitReader(io.BytesIO(data), check_crc=fitdecode.CrcCheck.WARN) as reader:
-        for frame in reader:
-            if frame.frame_type != fitdecode.FIT_FRAME_DATA:
-                continue
-            if frame.name == "file_id" and not device:
-                values = {f.name: f.value for f in frame.fields}
-                device = " ".join(str(values[k]) for k in ("manufacturer", "garmin_product",
-                                                           "product") if values.get(k))
-            elif frame.name == "record":
-                rows.append({f.name: f.value for f in frame.fields})
+    """A FIT activity (only the bike leg of a multisport one: `fit_records`)."""
+    activity = read_fit_activity(path, data)
+    rows = activity.records
 
     def col(*names: str, scale: float = 1.0) -> list[float | None]:
         out: list[float | None] = []
@@ -287,7 +277,7 @@ def _read_fit(path: Path, data: bytes) -> Recording:
         ele_m=_arr(col("enhanced_altitude", "altitude")), time_s=_opt(times),
         speed_mps=_opt(col("enhanced_speed", "speed")), power_w=_opt(col("power")),
         cadence_rpm=_opt(col("cadence")), temperature_c=_opt(col("temperature")),
-        device=device,
+        device=activity.device,
     )
 
 
