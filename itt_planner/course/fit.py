@@ -31,23 +31,22 @@ pipeline here:
 
 What trimming, the gaps, the elevation choice and the width did is kept in `Course.build`.
 
-A cubic smoothing spline with weights w_i and penalty lam has a local equivalent-kernel
-bandwidth h = (lam / (w * rho)) ** 0.25, rho = points per metre (Silverman 1984); the
-weights below are set from that relation to get a chosen smoothing length in metres.
+The smoothing splines, and the altitude's fit with them, are in `course.smoothing`.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Literal, cast
 
 import numpy as np
-from scipy.interpolate import BSpline, make_smoothing_spline
+from scipy.interpolate import BSpline
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d, uniform_filter1d
 
 from itt_planner.course.elevation import ElevationOptions, build_profile
 from itt_planner.course.geometry import GPS_ROAD_WIDTH_M, Course
+from itt_planner.course.smoothing import fit_altitude, smoothing_spline
 from itt_planner.course.track_clean import CleanSettings, Track, clean_fixes, close_loop
 from itt_planner.course.track_files import Recording, read_recording
 from itt_planner.course.track_gaps import fill_gaps, gap_report
@@ -138,8 +137,8 @@ def fit_course(rec: Recording, settings: FitSettings = FitSettings(),
     s, x, y, theta, kappa, s_pts = _fit_plan(track, settings)
 
     def fit(sp: np.ndarray, zp: np.ndarray, scale_m: float) -> np.ndarray:
-        st = replace(settings, altitude_scale_m=scale_m)
-        return _fit_altitude(sp, zp, float(s[-1]), track.closed_loop, st)(s)
+        return fit_altitude(sp, zp, float(s[-1]), track.closed_loop, scale_m,
+                            settings.max_grade)(s)
 
     try:
         z, elevation = build_profile(s, x, y, track.origin, (s_pts, track.z_m),
@@ -227,7 +226,7 @@ def _fit_plan(track: Track, st: FitSettings  # noqa: PLR0915  (one pipeline; pas
     # Pass 3 uses the adaptive smoothing length set from pass 2's radius. All lengths
     # scale with the noise measured after pass 1 (a map-drawn track needs far less).
     h = np.full(len(u_fit), st.corner_search_scale_m)
-    spl = _smooth(u_fit, xy_fit, h)
+    spl = smoothing_spline(u_fit, xy_fit, h)
     noise = _noise_factor(spl, u_fit[at], xy_fit[at], st)  # the fixes' noise, not the fill's
     for k in range(1, 3):
         u_fit = _reparametrise(spl, u_fit, xy_fit)
@@ -248,7 +247,7 @@ def _fit_plan(track: Track, st: FitSettings  # noqa: PLR0915  (one pipeline; pas
             h = np.clip(st.radius_scale / np.maximum(kap, 1e-9), st.min_scale_m,
                         st.straight_scale_m)
             h = uniform_filter1d(h, win, mode="nearest")
-        spl = _smooth(u_fit, xy_fit, h * noise)
+        spl = smoothing_spline(u_fit, xy_fit, h * noise)
     u_pts = u_fit[at[off: off + n_pts]]
     if track.closed_loop:
         period = float(u_fit[at[off + n_pts]] - u_pts[0])
@@ -313,17 +312,6 @@ def _smooth_heading(s: np.ndarray, x: np.ndarray, y: np.ndarray, theta: np.ndarr
     return xo, yo, th, np.gradient(th, s)
 
 
-def _smooth(u: np.ndarray, values: np.ndarray, scale_m: np.ndarray) -> BSpline:
-    """Cubic smoothing spline with a local smoothing length `scale_m` (m) per point.
-
-    Weights follow from the equivalent-kernel bandwidth h = (lam / (w * rho)) ** 0.25.
-    """
-    du = np.gradient(u)
-    rho = 1.0 / np.maximum(uniform_filter1d(du, 5, mode="nearest"), 1e-3)
-    lam = float(np.max(scale_m)) ** 4
-    return make_smoothing_spline(u, values, w=lam / (rho * scale_m**4), lam=lam)
-
-
 def _noise_factor(spl: BSpline, u: np.ndarray, xy: np.ndarray, st: FitSettings) -> float:
     """Scale of all smoothing lengths: (measured GPS noise / nominal noise) ** 0.4.
 
@@ -357,42 +345,3 @@ def _curvature(spl: BSpline, u: np.ndarray) -> np.ndarray:
     d2 = spl.derivative(2)(u)
     num = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
     return cast(np.ndarray, num / np.maximum(np.hypot(d1[:, 0], d1[:, 1]), 1e-9) ** 3)
-
-
-# ---- altitude ------------------------------------------------------------------------------
-def _fit_altitude(s_pts: np.ndarray, z_pts: np.ndarray, length_m: float, closed: bool,
-                  st: FitSettings) -> BSpline:
-    """Smoothing spline z(s) with a long smoothing length (altitude jitters by metres).
-
-    Closed loops are wrapped like the plan view, positions modulo the loop (its end is its start).
-    """
-    if closed:
-        s_pts = np.mod(s_pts, length_m)
-    order = np.argsort(s_pts, kind="stable")
-    s, z = s_pts[order], z_pts[order]
-    uniq = np.concatenate([[True], np.diff(s) > 1e-3])
-    s, z = s[uniq], z[uniq]
-    if closed:
-        pad = min(4.0 * st.altitude_scale_m, 0.45 * length_m)
-        head, tail = s < pad, s > length_m - pad
-        s = np.concatenate([s[tail] - length_m, s, s[head] + length_m])
-        z = np.concatenate([z[tail], z, z[head]])
-    if len(s) < 5:
-        s_new = np.linspace(s[0], s[-1], 5)
-        z = np.interp(s_new, s, z)
-        s = s_new
-    # Roads steeper than `max_grade` do not exist on a course worth planning; where the
-    # fit says so, the altitude data is wrong there (baro jump after a pause, GPS altitude
-    # after a gap), so smooth those stretches harder until the grade is plausible.
-    scale = np.full(len(s), st.altitude_scale_m)
-    for _ in range(8):
-        spl = _smooth(s, z, scale)
-        grid = np.arange(s[0], s[-1], 1.0)
-        steep_grid = np.abs(spl.derivative(1)(grid)) > 0.95 * st.max_grade
-        if not steep_grid.any():
-            break
-        # Data points within 50 m of a steep stretch get the longer smoothing length.
-        steep = np.interp(s, grid, maximum_filter1d(steep_grid.astype(float), 101)) > 0
-        widen = steep
-        scale = np.where(widen, scale * 2.0, scale)
-    return spl
