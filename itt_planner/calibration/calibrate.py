@@ -23,7 +23,10 @@ from itt_planner.calibration.elevation_check import check_ride_altitude
 from itt_planner.calibration.power_curve import CpFit, fit_cp, mmp_curve, submaximal_warning
 from itt_planner.calibration.ride_data import (
     CalibrationError,
+    MissingChannelError,
+    PowerSeries,
     RideSeries,
+    prepare_power,
     prepare_ride,
     record_setup,
 )
@@ -70,6 +73,7 @@ class CalibrationResult:
     sources: list[str]
     rider: Rider
     rides: list[RideSeries]
+    power_rides: list[PowerSeries] = field(default_factory=list)
     mmp_w: dict[int, float] = field(default_factory=dict)
     aero: AeroFit | None = None
     cp_2p: CpFit | None = None
@@ -102,9 +106,12 @@ class CalibrationResult:
             "mmp_w": {str(k): round(v, 1) for k, v in sorted(self.mmp_w.items())},
             "refusals": dict(self.refusals),
             "warnings": dict(self.warnings),
-            "temperature_c": [r.temperature_c for r in self.rides],
+            # Per ride of `sources`; a ride of its power alone has neither.
+            "temperature_c": [*(r.temperature_c for r in self.rides),
+                              *(None for _ in self.power_rides)],
             # Smart recording's gaps filled at 1 s, per ride (ride_import.ridden_gaps).
-            "filled_s": [r.filled_s for r in self.rides],
+            "filled_s": [*(r.filled_s for r in self.rides), *(0 for _ in self.power_rides)],
+            "power_only": {r.source: r.why for r in self.power_rides},
             "drivetrain_efficiency": self.options.drivetrain_efficiency,
             "setups": self._setups(),
         }
@@ -113,8 +120,8 @@ class CalibrationResult:
         """Per setup: its rides and, when fitted, its CdA with the bootstrap sd."""
         out: dict[str, Any] = {}
         for j, name in enumerate(self.setup_names):
-            row: dict[str, Any] = {"rides": [src for src, k in zip(
-                self.sources, self.setup_of_ride, strict=True) if k == j]}
+            row: dict[str, Any] = {"rides": [r.source for r, k in zip(
+                self.rides, self.setup_of_ride, strict=True) if k == j]}
             if self.aero is not None and self.aero.setup_cda_m2:
                 row.update(cda_m2=round(self.aero.setup_cda_m2[j], 4),
                            cda_std_m2=round(self.aero.setup_cda_std_m2[j], 4))
@@ -134,14 +141,33 @@ def load_rides(paths: Sequence[str | Path | Recording], temperature_c: float | N
     Raises:
         CalibrationError: a ride cannot be read or prepared.
     """
-    out = []
+    return [prepare_ride(_recording(item), temperature_c=temperature_c) for item in paths]
+
+
+def read_rides(paths: Sequence[str | Path | Recording], temperature_c: float | None
+               ) -> list[RideSeries | PowerSeries]:
+    """Each ride prepared (`load_rides`); a ride with power but without altitude or speed
+    (an indoor trainer's) as its power alone.
+
+    Raises:
+        CalibrationError: a ride cannot be read, has no stamps or power, or is too short.
+    """
+    out: list[RideSeries | PowerSeries] = []
     for item in paths:
+        rec = _recording(item)
         try:
-            rec = item if isinstance(item, Recording) else read_recording(item)
-        except CourseError as err:
-            raise CalibrationError(str(err)) from None
-        out.append(prepare_ride(rec, temperature_c=temperature_c))
+            out.append(prepare_ride(rec, temperature_c=temperature_c))
+        except MissingChannelError as err:
+            out.append(prepare_power(rec, str(err).removeprefix(f"{rec.path}: ")))
     return out
+
+
+def _recording(item: str | Path | Recording) -> Recording:
+    """The ride file read (a `CalibrationError` naming it when it cannot be)."""
+    try:
+        return item if isinstance(item, Recording) else read_recording(item)
+    except CourseError as err:
+        raise CalibrationError(str(err)) from None
 
 
 def ride_courses(rides: list[RideSeries], course: str | None) -> list[Course]:
@@ -162,22 +188,34 @@ def calibrate(rides: Sequence[str | Path | Recording],
         CalibrationError: a ride is unusable (no power, stamps, elevation; too short), or
             every estimator refused (the message lists each reason).
     """
-    series = load_rides(list(rides), options.temperature_c)
-    result = CalibrationResult(sources=[r.source for r in series], rider=PRESETS[options.preset],
-                               rides=series, options=options)
-    result.setup_names, result.setup_of_ride = _setups(series, options.setups)
+    prepared = read_rides(list(rides), options.temperature_c)
+    if options.setups and len(options.setups) != len(prepared):
+        raise CalibrationError(f"{len(options.setups)} setups given for {len(prepared)} rides: "
+                               "give one --setup per ride, in the rides' order")
+    series = [r for r in prepared if isinstance(r, RideSeries)]
+    power_rides = [r for r in prepared if isinstance(r, PowerSeries)]
+    result = CalibrationResult(sources=[*(r.source for r in series),
+                                        *(r.source for r in power_rides)],
+                               rider=PRESETS[options.preset], rides=series,
+                               power_rides=power_rides, options=options)
+    given = tuple(label for label, r in zip(options.setups, prepared, strict=False)
+                  if isinstance(r, RideSeries))
+    result.setup_names, result.setup_of_ride = _setups(series, given)
     settings = AeroSettings(mass_kg=options.mass_kg,
                             drivetrain_efficiency=options.drivetrain_efficiency,
                             crr_prior=options.crr_prior, allow_simulated=options.allow_virtual,
                             setup_of_ride=tuple(result.setup_of_ride)
                             if len(result.setup_names) > 1 else ())
     try:
+        if not series:
+            raise CalibrationError("no ride with altitude and speed: " + "; ".join(
+                f"{r.source}: {r.why}" for r in power_rides))
         for ride in series:
             check_ride_altitude(ride)
         result.aero = fit_aero(series, settings)
     except CalibrationError as err:
         result.refusals["aero"] = str(err)
-    result.mmp_w = mmp_curve(series)
+    result.mmp_w = mmp_curve([*series, *power_rides])
     for model in ("2p", "3p"):
         try:
             setattr(result, f"cp_{model}", fit_cp(result.mmp_w, model))
@@ -186,6 +224,8 @@ def calibrate(rides: Sequence[str | Path | Recording],
     if result.cp_2p is not None and (why := submaximal_warning(result.cp_2p, result.mmp_w)):
         result.warnings["cp_2p"] = why
     try:
+        if not series:
+            raise CalibrationError("no ride with GPS positions and speed")
         result.cornering = fit_cornering(series, courses or ride_courses(series, options.course))
     except (CalibrationError, CourseError) as err:
         result.refusals["cornering"] = str(err)
@@ -197,14 +237,8 @@ def calibrate(rides: Sequence[str | Path | Recording],
 
 
 def _setups(rides: list[RideSeries], given: tuple[str, ...]) -> tuple[list[str], list[int]]:
-    """Setup names (first-seen order) and each ride's index among them.
-
-    Raises:
-        CalibrationError: `given` names a number of setups other than one per ride.
-    """
-    if given and len(given) != len(rides):
-        raise CalibrationError(f"{len(given)} setups given for {len(rides)} rides: give one "
-                               "--setup per ride, in the rides' order")
+    """Setup names (first-seen order) and each ride's index among them (`given`: one label
+    per ride, or none)."""
     labels = list(given) or [record_setup(Path(r.source)) or "default" for r in rides]
     names = list(dict.fromkeys(labels))
     return names, [names.index(label) for label in labels]
@@ -268,6 +302,8 @@ def rider_yaml(result: CalibrationResult) -> str:
     lines = [f"{YAML_HEADER}{', '.join(result.sources)}", *winds, *setups,
              *(f"# refused {k}: {v}" for k, v in result.refusals.items()),
              *(f"# warning {k}: {v}" for k, v in result.warnings.items()),
+             *(f"# power only {r.source}: {r.why} (its power is in CP and W')"
+               for r in result.power_rides),
              f"preset: {opts.preset}"]
     for name in fitted:
         if name not in rider_fields():

@@ -32,12 +32,13 @@ maximal efforts give 20-50 %).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import curve_fit
 
-from itt_planner.calibration.ride_data import CalibrationError, RideSeries
+from itt_planner.calibration.ride_data import CalibrationError, PowerSeries, RideSeries
 from itt_planner.model.mean_max import mean_max_power
 
 #: Durations (s) of the MMP curve.
@@ -90,7 +91,7 @@ class CpFit:
         return out
 
 
-def mmp_curve(rides: list[RideSeries], durations_s: tuple[int, ...] = DURATIONS_S
+def mmp_curve(rides: Sequence[RideSeries | PowerSeries], durations_s: tuple[int, ...] = DURATIONS_S
               ) -> dict[int, float]:
     """Best average power per duration over all rides, on 1 Hz moving time.
 

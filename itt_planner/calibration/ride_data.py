@@ -4,7 +4,10 @@
 with speed (the device's, else derived from GPS), power, altitude, travelled distance and
 air density (from altitude and temperature), split into stretches where the recording
 is continuous. It refuses, with a `CalibrationError` naming the file and the reason, a
-ride without stamps, power, altitude or movement, or one too short to fit anything.
+ride without stamps, power, altitude or movement, or one too short to fit anything. A ride
+with stamps and power but no altitude or no speed (an indoor trainer's: no GPS) is
+refused by `MissingChannelError`; `prepare_power` makes its power alone a `PowerSeries`,
+which the power-duration curve takes (a CP test is often ridden indoors).
 """
 
 from __future__ import annotations
@@ -34,6 +37,11 @@ MIN_MOVING_S = 600.0
 
 class CalibrationError(IttError):
     """A ride cannot be calibrated or validated; the message names the file and why."""
+
+
+class MissingChannelError(CalibrationError):
+    """A ride has stamps and power but no altitude, or neither speed nor positions: the
+    power balance cannot use it; its power alone can (`prepare_power`)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,6 +89,28 @@ class RideSeries:
         dt = np.diff(self.t_s)
         same = np.diff(self.block) == 0
         return float(np.sum(dt[same & (self.v_mps[1:] > MOVING_MPS)]))
+
+
+@dataclass(frozen=True, eq=False)
+class PowerSeries:
+    """A ride's power alone (`prepare_power`), for the power-duration curve.
+
+    Attributes:
+        t_s, power_w, block: as `RideSeries`'s.
+        why: why the ride's other channels are not used.
+    """
+
+    source: str
+    t_s: np.ndarray
+    power_w: np.ndarray
+    block: np.ndarray
+    why: str
+
+    @property
+    def moving_time_s(self) -> float:
+        """Time pedalled (power above 0) within the continuous stretches."""
+        dt = np.diff(self.t_s)
+        return float(np.sum(dt[(np.diff(self.block) == 0) & (self.power_w[1:] > 0)]))
 
 
 def _fit_messages(path: Path, message: str) -> list[dict[str, object]]:
@@ -158,18 +188,13 @@ def prepare_ride(rec: Recording, *, temperature_c: float | None = None,
             or less than `min_moving_s` of moving time (the message says which).
     """
     where = str(rec.path)
-    if rec.time_s is None or np.sum(np.isfinite(rec.time_s)) < 2:
-        raise CalibrationError(f"{where}: no timestamps; nothing can be fitted without time")
-    if rec.power_w is None or not np.any(np.nan_to_num(rec.power_w) > 0):
-        raise CalibrationError(f"{where}: no power readings; CdA, crr, CP and W' need power")
+    order = _time_order(rec)
     ele_all = np.asarray(rec.ele_m, float)
     if np.sum(np.isfinite(ele_all)) < 2 or np.nanmax(ele_all) - np.nanmin(ele_all) <= 0.0:
-        raise CalibrationError(f"{where}: no elevation in the record; the power balance "
-                               "needs the climbing work")
-    ok = np.isfinite(rec.time_s)
-    order = np.flatnonzero(ok)[np.argsort(rec.time_s[ok], kind="stable")]
-    # Duplicate stamps (some head units write two records a second) keep the first.
-    order = order[np.concatenate([[True], np.diff(rec.time_s[order]) > 0])]
+        raise MissingChannelError(f"{where}: no elevation in the record; the power balance "
+                                  "needs the climbing work")
+    assert rec.time_s is not None
+    assert rec.power_w is not None
     rec, filled = fill_sparse_records(dataclasses.replace(
         rec, lat_deg=rec.lat_deg[order], lon_deg=rec.lon_deg[order], ele_m=ele_all[order],
         time_s=rec.time_s[order], speed_mps=_take(rec.speed_mps, order),
@@ -184,15 +209,13 @@ def prepare_ride(rec: Recording, *, temperature_c: float | None = None,
     elif np.sum(np.isfinite(gps_v)) > len(rec) // 2:
         speed, source = gps_v, "gps"
     else:
-        raise CalibrationError(f"{where}: neither a speed sensor nor GPS positions; "
-                               "no speed to fit against")
+        raise MissingChannelError(f"{where}: neither a speed sensor nor GPS positions; "
+                                  "no speed to fit against")
     speed = _fill(np.asarray(speed, float))
-    power = np.nan_to_num(np.asarray(rec.power_w, float), nan=0.0)
-    # A meter glitch (above any sprint) carries no information: read it as missing (0).
-    power = np.where(power > POWER_SPIKE_W, 0.0, power)
+    power = _clean_power(rec.power_w)
     ele = _fill(np.asarray(rec.ele_m, float))
     t = t_abs - t_abs[0]
-    block = np.concatenate([[0], np.cumsum(np.diff(t) > PAUSE_MIN_S)])
+    block = _blocks(t)
     dt = np.diff(t)
     same = np.diff(block) == 0
     step = np.where(same, 0.5 * (speed[1:] + speed[:-1]) * dt, 0.0)
@@ -209,6 +232,53 @@ def prepare_ride(rec: Recording, *, temperature_c: float | None = None,
         raise CalibrationError(f"{where}: too short: {series.moving_time_s:.0f} s of moving "
                                f"time, at least {min_moving_s:.0f} s needed")
     return series
+
+
+def prepare_power(rec: Recording, why: str, *, min_moving_s: float = MIN_MOVING_S
+                  ) -> PowerSeries:
+    """The ride's power alone (`why`: what the power balance missed in it).
+
+    Raises:
+        CalibrationError: no timestamps, no power, or less than `min_moving_s` pedalled.
+    """
+    order = _time_order(rec)
+    assert rec.time_s is not None
+    assert rec.power_w is not None
+    t = rec.time_s[order] - rec.time_s[order][0]
+    series = PowerSeries(str(rec.path), t, _clean_power(rec.power_w[order]), _blocks(t), why)
+    if series.moving_time_s < min_moving_s:
+        raise CalibrationError(f"{rec.path}: too short: {series.moving_time_s:.0f} s pedalled, "
+                               f"at least {min_moving_s:.0f} s needed")
+    return series
+
+
+def _time_order(rec: Recording) -> np.ndarray:
+    """Indices of the records in time order, the first of each duplicate stamp (some head
+    units write two records a second).
+
+    Raises:
+        CalibrationError: no timestamps or no power (naming the file).
+    """
+    if rec.time_s is None or np.sum(np.isfinite(rec.time_s)) < 2:
+        raise CalibrationError(f"{rec.path}: no timestamps; nothing can be fitted without time")
+    if rec.power_w is None or not np.any(np.nan_to_num(rec.power_w) > 0):
+        raise CalibrationError(f"{rec.path}: no power readings; CdA, crr, CP and W' need power")
+    ok = np.isfinite(rec.time_s)
+    order = np.flatnonzero(ok)[np.argsort(rec.time_s[ok], kind="stable")]
+    first: np.ndarray = order[np.concatenate([[True], np.diff(rec.time_s[order]) > 0])]
+    return first
+
+
+def _clean_power(power_w: np.ndarray) -> np.ndarray:
+    """Power with missing readings and meter glitches (above any sprint: no information)
+    read as 0."""
+    power = np.nan_to_num(np.asarray(power_w, float), nan=0.0)
+    return np.where(power > POWER_SPIKE_W, 0.0, power)
+
+
+def _blocks(t_s: np.ndarray) -> np.ndarray:
+    """Index of each sample's continuous stretch (a gap over `PAUSE_MIN_S` starts one)."""
+    return np.concatenate([[0], np.cumsum(np.diff(t_s) > PAUSE_MIN_S)])
 
 
 def _take(values: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:

@@ -15,6 +15,8 @@ def _human_calibration(r: dict[str, Any]) -> str:
     lines = [f"rider from {', '.join(r['rides'])}:"]
     lines += [f"  {src}: {n} s filled at 1 s between sparse records (smart recording)"
               for src, n in zip(r["rides"], r["filled_s"], strict=True) if n]
+    lines += [f"  {src}: its power only, for CP and W' ({why})"
+              for src, why in r["power_only"].items()]
     a = r["aero"]
     if a:
         mass = (f"mass {a['mass_kg']} +- {a['mass_std_kg']} kg (estimated)"

@@ -19,6 +19,7 @@ from itt_planner.calibration import (
     fit_aero,
     fit_cp,
     prepare_ride,
+    rider_yaml,
     write_rider,
 )
 from itt_planner.calibration.calibrate import CalibrationResult, load_rides, write_setup_riders
@@ -144,6 +145,33 @@ def test_only_gaps_ridden_through_are_filled(synthetic: Synthetic) -> None:
     assert added == 10 and filled.time_s is not None
     np.testing.assert_allclose(filled.time_s[:200], rec.time_s[:200])
     assert filled.time_s[201] - filled.time_s[200] == pytest.approx(10.0)
+
+
+def test_an_indoor_ride_gives_its_power_to_cp_and_w_prime(synthetic: Synthetic,
+                                                         tmp_path: Path) -> None:
+    """A trainer's ride (power and stamps; no GPS, altitude or speed) was refused whole
+    ("no elevation in the record"), CP and W' with it, though a CP test is often ridden
+    indoors: its power now goes into the power-duration curve, and only the power
+    balance and the cornering refuse it, saying why."""
+    course, rec = synthetic
+    nan = np.full(len(rec), np.nan)
+    indoor = dataclasses.replace(rec, path=Path("trainer.fit"), lat_deg=nan, lon_deg=nan,
+                                 ele_m=nan, speed_mps=None)
+    alone = calibrate([indoor], CalibrationOptions(mass_kg=TRUTH.mass_kg))
+    assert alone.cp_2p is not None
+    assert alone.cp_2p.cp_w == pytest.approx(TRUTH.critical_power_w, rel=0.05)
+    assert alone.refusals["aero"] == ("no ride with altitude and speed: trainer.fit: no "
+                                      "elevation in the record; the power balance needs the "
+                                      "climbing work")
+    assert alone.refusals["cornering"] == "no ride with GPS positions and speed"
+    assert alone.as_dict()["power_only"] == {"trainer.fit": alone.power_rides[0].why}
+    assert "# power only trainer.fit: no elevation" in rider_yaml(alone)
+    both = calibrate([indoor, rec], CalibrationOptions(mass_kg=TRUTH.mass_kg),
+                     courses=[course])
+    assert both.aero is not None and [r.source for r in both.rides] == [str(rec.path)]
+    assert both.sources == [str(rec.path), "trainer.fit"]
+    assert both.mmp_w == alone.mmp_w  # the same power twice: the same best efforts
+    load_rider(write_rider(both, tmp_path / "me.yaml"))
 
 
 def test_synthetic_mass_estimated(synthetic: Synthetic) -> None:
