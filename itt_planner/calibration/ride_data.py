@@ -257,10 +257,14 @@ def _time_order(rec: Recording) -> np.ndarray:
     units write two records a second).
 
     Raises:
-        CalibrationError: no timestamps or no power (naming the file).
+        CalibrationError: no timestamps, another sport than cycling, or no power (naming
+            the file).
     """
     if rec.time_s is None or np.sum(np.isfinite(rec.time_s)) < 2:
         raise CalibrationError(f"{rec.path}: no timestamps; nothing can be fitted without time")
+    if rec.other_sport:
+        raise CalibrationError(f"{rec.path}: a {rec.sport!r} activity (the file says so), not a "
+                               "ride: its power and speed are not a cyclist's")
     if rec.power_w is None or not np.any(np.nan_to_num(rec.power_w) > 0):
         raise CalibrationError(f"{rec.path}: no power readings; CdA, crr, CP and W' need power")
     ok = np.isfinite(rec.time_s)

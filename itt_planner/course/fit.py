@@ -157,8 +157,12 @@ def fit_course(rec: Recording, settings: FitSettings = FitSettings(),
     gap_rows, gap_warnings = gap_report(np.column_stack([track.x_m, track.y_m]), None if rec.time_s
                                         is None else np.asarray(rec.time_s, float)[track.index],
                                         s_fix, track.stamped)
+    # A run's or a walk's track is still a route; what was done on it was no ride.
+    sport = [f"the file is a {rec.sport!r} activity, not a ride: its track is read as a course"
+             ] if rec.other_sport else []
     build = {"trim": trim_report, "elevation": elevation, "road_width": width_report, "gaps":
-             gap_rows, "warnings": trim.warnings() + list(elevation["warnings"]) + gap_warnings}
+             gap_rows, "sport": rec.sport,
+             "warnings": trim.warnings() + list(elevation["warnings"]) + gap_warnings + sport}
     return Course.from_centerline(
         rec.path.name.split(".")[0], x, y, z, origin=track.origin,
         closed_loop=track.closed_loop, ds_m=settings.ds_m, theta_rad=theta, kappa_per_m=kappa,

@@ -27,10 +27,11 @@ Row = dict[str, Any]
 @dataclass(frozen=True)
 class FitActivity:
     """The records of a FIT activity (each a field name -> value mapping, fitdecode's units
-    and names) and the device that wrote it ("" when the file does not say)."""
+    and names), the device that wrote it and its sport ("" when the file does not say)."""
 
     records: list[Row]
     device: str
+    sport: str = ""
 
 
 def read_fit_activity(path: Path, data: bytes) -> FitActivity:
@@ -57,7 +58,10 @@ def read_fit_activity(path: Path, data: bytes) -> FitActivity:
                 rows.append({f.name: f.value for f in frame.fields})
             elif frame.name == "session":
                 sessions.append({f.name: f.value for f in frame.fields})
-    return FitActivity(_bike_leg(path, rows, sessions), device)
+    sports = {str(s["sport"]) for s in sessions if s.get("sport") is not None}
+    if len(sports) > 1:
+        return FitActivity(_bike_leg(path, rows, sessions), device, "cycling")
+    return FitActivity(rows, device, sports.pop() if sports else "")
 
 
 def _fixes(rows: list[Row]) -> int:
@@ -66,14 +70,11 @@ def _fixes(rows: list[Row]) -> int:
 
 
 def _bike_leg(path: Path, rows: list[Row], sessions: list[Row]) -> list[Row]:
-    """All `rows` unless the sessions are of several sports; then the rows of the cycling
-    session with the most positions.
+    """The rows of the cycling session with the most positions.
 
     Raises:
         CourseError: no cycling session has 3 positions or more (naming every leg).
     """
-    if len({str(s.get("sport")) for s in sessions}) < 2:
-        return rows
     legs = [(str(s.get("sport")), _rows_within(rows, s)) for s in sessions]
     bikes = [leg for sport, leg in legs if sport in BIKE_SPORTS and _fixes(leg) >= 3]
     if not bikes:

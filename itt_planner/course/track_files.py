@@ -64,9 +64,23 @@ class Recording:
     #: The head unit's air temperature (C), for the air density.
     temperature_c: np.ndarray | None = None
     device: str = ""
+    #: The activity's sport as the file names it (FIT session, TCX `Sport`, GPX track
+    #: `type`); "" when it names none.
+    sport: str = ""
 
     def __len__(self) -> int:
         return len(self.lat_deg)
+
+    @property
+    def other_sport(self) -> bool:
+        """The file names a sport that is not cycling (a run, a swim, a walk...)."""
+        return any(word in self.sport.lower() for word in _OTHER_SPORTS)
+
+
+#: Words of the sports that are not a ride, as FIT, TCX and GPX files name them (a
+#: number, Strava's GPX code, is none of them: unknown, read as a ride).
+_OTHER_SPORTS = ("run", "walk", "hik", "swim", "row", "ski", "paddl", "kayak", "canoe",
+                 "skat")
 
 
 def file_sha256(path: Path) -> str:
@@ -186,6 +200,7 @@ def _read_gpx(path: Path, data: bytes) -> Recording:
         cadence_rpm=_opt([e.get("cadence") for e in ext]),
         temperature_c=_opt([e.get("temperature") for e in ext]),
         device=gpx.creator or "",
+        sport=next((str(trk.type) for trk in gpx.tracks if trk.type), ""),
     )
 
 
@@ -219,13 +234,14 @@ def _read_tcx(path: Path, data: bytes) -> Recording:
     # and their power and speed with them (a head unit that found no GPS for minutes).
     ex = reader.read(io.BytesIO(xml), only_gps=False)
     tps = ex.trackpoints or []
+    sport = str(getattr(ex, "activity_type", "") or "") if tps else ""
     if not tps:
         root = ET.fromstring(xml)
         tps = points(root.iterfind(f"{NS}Courses/{NS}Course/{NS}Track/{NS}Trackpoint"))
         legs = [(act.get("Sport", "?"), points(act.iterfind(f"{NS}Lap/{NS}Track/{NS}Trackpoint")))
                 for act in root.iterfind(f".//{NS}MultiSportSession//{NS}Activity")]
         if not tps and legs:
-            tps = _bike_leg(path, legs)
+            tps, sport = _bike_leg(path, legs), "Biking"
     return Recording(
         path=path, sha256=file_sha256(path),
         lat_deg=_arr([tp.latitude for tp in tps]), lon_deg=_arr([tp.longitude for tp in tps]),
@@ -234,7 +250,7 @@ def _read_tcx(path: Path, data: bytes) -> Recording:
         speed_mps=_opt([tp.tpx_ext.get("Speed") if tp.tpx_ext else None for tp in tps]),
         power_w=_opt([tp.tpx_ext.get("Watts") if tp.tpx_ext else None for tp in tps]),
         cadence_rpm=_opt([tp.cadence for tp in tps]),
-        device=str(getattr(ex, "device", "") or ""),
+        device=str(getattr(ex, "device", "") or ""), sport=sport,
     )
 
 
@@ -277,7 +293,7 @@ def _read_fit(path: Path, data: bytes) -> Recording:
         ele_m=_arr(col("enhanced_altitude", "altitude")), time_s=_opt(times),
         speed_mps=_opt(col("enhanced_speed", "speed")), power_w=_opt(col("power")),
         cadence_rpm=_opt(col("cadence")), temperature_c=_opt(col("temperature")),
-        device=activity.device,
+        device=activity.device, sport=activity.sport,
     )
 
 

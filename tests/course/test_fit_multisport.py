@@ -64,14 +64,15 @@ def test_a_triathlon_fit_gives_its_bike_leg(tmp_path: Path) -> None:
         (Sport.SWIMMING, 60, False), (Sport.TRANSITION, 20, True), (Sport.CYCLING, 120, True),
         (Sport.TRANSITION, 15, True), (Sport.RUNNING, 60, True)])
     rec = read_recording(path)
-    assert len(rec) == 120
+    assert len(rec) == 120 and rec.sport == "cycling"
     assert rec.power_w is not None and (rec.power_w == 250).all()
     assert rec.time_s is not None and rec.time_s[0] == pytest.approx(_T0_MS / 1000 + 80)
 
 
 def test_a_ride_in_sessions_of_one_sport_keeps_every_record(tmp_path: Path) -> None:
     path = _activity(tmp_path / "ride.fit", [(Sport.CYCLING, 50, True), (Sport.CYCLING, 40, True)])
-    assert len(read_recording(path)) == 90
+    rec = read_recording(path)
+    assert len(rec) == 90 and rec.sport == "cycling"
 
 
 def test_a_multisport_fit_without_a_ride_names_its_legs(tmp_path: Path) -> None:

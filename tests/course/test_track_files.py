@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from itt_planner.calibration import CalibrationError, calibrate
 from itt_planner.calibration.ride_data import record_temperature_c
 from itt_planner.course.loader import load_course
 from itt_planner.course.track_files import file_sha256, read_recording, track_format
@@ -227,3 +228,29 @@ def test_a_multisport_tcx_gives_its_bike_leg(tmp_path: Path) -> None:
                        r"Biking activity with GPS positions \(Running: 50 trackpoints, 50 "
                        r"with a position; Biking: 50 trackpoints, 0 with a position\)"):
         read_recording(path)
+
+
+def test_a_run_is_read_as_a_route_and_named(tmp_path: Path) -> None:
+    """A run (a Polar M400's TCX in sweatpy's examples, `Sport="Running"`) was read as a
+    ride without a word: its track is a course with a warning, and calibrate refuses its
+    power (a running power meter's is no cyclist's). A ride's sport is kept as named,
+    Strava's GPX code (`<type>1</type>`) too, and is no warning."""
+    run = tmp_path / "run.tcx"
+    run.write_text(_strava_tcx(700).replace('Sport="Biking"', 'Sport="Running"'))
+    rec = read_recording(run)
+    assert rec.sport == "Running" and rec.other_sport
+    warnings = load_course(run).build["warnings"]
+    assert "the file is a 'Running' activity, not a ride: its track is read as a course" \
+        in warnings
+    with pytest.raises(CalibrationError, match=r"run\.tcx: a 'Running' activity \(the file "
+                       r"says so\), not a ride"):
+        calibrate([run])
+    ride = tmp_path / "ride.tcx"
+    ride.write_text(_strava_tcx(50))
+    assert read_recording(ride).sport == "Biking" and not read_recording(ride).other_sport
+    gpx = tmp_path / "strava.gpx"
+    gpx.write_text('<?xml version="1.0"?><gpx version="1.1" creator="StravaGPX" '
+                   'xmlns="http://www.topografix.com/GPX/1/1"><trk><type>1</type><trkseg>'
+                   + "".join(f'<trkpt lat="45.{i:04d}" lon="11.0"><ele>100</ele></trkpt>'
+                             for i in range(5)) + "</trkseg></trk></gpx>")
+    assert read_recording(gpx).sport == "1" and not read_recording(gpx).other_sport
