@@ -32,6 +32,7 @@ def _human_import(r: dict[str, Any]) -> str:
                  f"{r['gps_jumps']} GPS jumps, {r['power_spikes']} power spikes, "
                  f"{r['records_without_position']} records without position "
                  "(all kept as recorded)")
+    lines += [f"WARNING: {w}" for w in r["warnings"]]
     return "\n".join(lines)
 
 

@@ -71,6 +71,9 @@ class ImportSummary:
     gps_jumps: int = 0
     power_spikes: int = 0
     records_without_position: int = 0
+    #: The sport the file names ("" when none); another than cycling is a warning.
+    sport: str = ""
+    warnings: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
         """The summary as plain JSON-able values (the CLI's `--json` object)."""
@@ -85,6 +88,7 @@ class ImportSummary:
                                            default=0.0),
             "gps_jumps": self.gps_jumps, "power_spikes": self.power_spikes,
             "records_without_position": self.records_without_position,
+            "sport": self.sport, "warnings": list(self.warnings),
         }
 
 
@@ -137,7 +141,10 @@ def import_ride(source: str | Path, output: str | Path, *, rider: str = "",
         pauses=find_pauses(times, among=~ridden), recording_gaps=find_pauses(times, among=ridden),
         gps_jumps=count_gps_jumps(lat[has_pos], lon[has_pos], times[has_pos]),
         power_spikes=int(np.sum(power > POWER_SPIKE_W)),
-        records_without_position=int(np.sum(~has_pos)),
+        records_without_position=int(np.sum(~has_pos)), sport=rec.sport,
+        warnings=[(f"the file is a {rec.sport!r} activity, not a ride: its speed and power "
+                  "are not a cyclist's, and a replay's advice for them means nothing")
+                  ] if rec.other_sport else [],
     )
 
 

@@ -207,3 +207,22 @@ def test_gaps_ridden_through_are_not_pauses(tmp_path: Path) -> None:
     t = np.array([0.0, 5, 10, 30])
     steps = np.array([np.nan, np.nan, 400.0])
     assert ridden_gaps(t, steps, np.array([8.0, 9, 0.5, 9])).tolist() == [True, False, False]
+
+
+def test_a_run_imports_with_a_warning(tmp_path: Path) -> None:
+    """A run's file (a TCX `Sport="Running"`, as a Polar M400 writes) makes a log, with a
+    warning in the JSON and on screen: the planner would pace a cyclist on it."""
+    tcx = tmp_path / "run.tcx"
+    tcx.write_text(
+        '<?xml version="1.0"?><TrainingCenterDatabase xmlns="http://www.garmin.com/xmlschemas/'
+        'TrainingCenterDatabase/v2"><Activities><Activity Sport="Running"><Id>2026-01-01T00:'
+        '00:00Z</Id><Lap StartTime="2026-01-01T00:00:00Z"><Track>'
+        + "".join(f"<Trackpoint><Time>2026-01-01T00:00:{i:02d}Z</Time><Position><Latitude"
+                  f"Degrees>{45 + 3e-5 * i:.6f}</LatitudeDegrees><LongitudeDegrees>11.0"
+                  "</LongitudeDegrees></Position></Trackpoint>" for i in range(10))
+        + "</Track></Lap></Activity></Activities></TrainingCenterDatabase>")
+    result = CliRunner().invoke(app, ["import", str(tcx), "-o", str(tmp_path / "r.mcap")])
+    assert result.exit_code == 0, result.output
+    assert "WARNING: the file is a 'Running' activity, not a ride" in result.stdout
+    summary = import_ride(tcx, tmp_path / "r2.mcap").as_dict()
+    assert summary["sport"] == "Running" and len(summary["warnings"]) == 1
