@@ -48,7 +48,7 @@ def _human_calibration(r: dict[str, Any]) -> str:
 @app.command("calibrate")
 def calibrate_cli(
     rides: list[Path] = typer.Argument(
-        ..., help="Ride files (.fit/.tcx/.gpx/.csv, or gzipped) of one rider."),
+        ..., help="Ride files (.fit/.tcx/.gpx/.csv/.pwx, or gzipped) of one rider."),
     output: Path | None = typer.Option(None, "--output", "-o", help="Write the rider YAML here."),
     course: str | None = typer.Option(None, "--course",
                                       help="Course of every ride (default: each ride's track)."),

@@ -78,7 +78,7 @@ def report_cli(
                               "shown with its uncertainties and sources."),
     ride: Path | None = typer.Option(
         None, "--ride", exists=True, dir_okay=False,
-        help="Ride file with power (.fit/.tcx/.gpx/.csv, or gzipped) to validate the models "
+        help="Ride file with power (.fit/.tcx/.gpx/.csv/.pwx, or gzipped) to validate the models "
              "and the plan against; default: the ride the course was fitted to, if any."),
     validate: bool = typer.Option(
         True, "--validate/--no-validate",

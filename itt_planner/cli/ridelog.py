@@ -39,7 +39,7 @@ def _human_import(r: dict[str, Any]) -> str:
 @app.command("import")
 def import_cli(
     ride: Path = typer.Argument(
-        ..., help="Recorded ride with times: .fit, .gpx, .tcx, .csv, a .kml/.kmz gx:Track or "
+        ..., help="Recorded ride with times: .fit, .gpx, .tcx, .csv, .pwx, a .kml/.kmz gx:Track or "
                   ".geojson (or gzipped: .fit.gz)."),
     output: Path = typer.Option(..., "--output", "-o", help="The MCAP ride log to write."),
     rider: str = typer.Option("", "--rider", help="Rider name for the log's metadata."),

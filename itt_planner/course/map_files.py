@@ -55,6 +55,7 @@ class MapRoute:
         time_s: POSIX seconds, or None when no point has a stamp.
         sensors: each of `SENSORS` that some point has (NaN at the others), in SI units
             but cadence (rpm) and temperature (C).
+        sport: the sport the file names ("" when none).
     """
 
     lat_deg: np.ndarray
@@ -62,6 +63,7 @@ class MapRoute:
     ele_m: np.ndarray
     time_s: np.ndarray | None
     sensors: dict[str, np.ndarray]
+    sport: str = ""
 
 
 def sensor_value(text: str | None) -> float:
@@ -99,7 +101,7 @@ def read_kml(path: Path, data: bytes, *, kmz: bool) -> MapRoute:
     if not rows:
         raise CourseError(f"{path}: no route in the KML (a LineString or gx:Track in a "
                           "Placemark; points and polygons are not a route)")
-    return _route(rows)
+    return route_from_rows(rows)
 
 
 def read_geojson(path: Path, data: bytes) -> MapRoute:
@@ -112,16 +114,19 @@ def read_geojson(path: Path, data: bytes) -> MapRoute:
     if not rows:
         raise CourseError(f"{path}: no route in the GeoJSON (a LineString or MultiLineString; "
                           "points and polygons are not a route)")
-    return _route(rows)
+    return route_from_rows(rows)
 
 
-def _route(rows: list[_Row]) -> MapRoute:
+def route_from_rows(rows: list[tuple[float, ...]], sport: str = "") -> MapRoute:
+    """Rows of (longitude, latitude, altitude, POSIX stamp, `SENSORS`...; NaN where
+    absent) as a route."""
     arr = np.array(rows, dtype=float)
     stamps = arr[:, 3]
     sensors = {name: arr[:, 4 + k] for k, name in enumerate(SENSORS)
                if np.isfinite(arr[:, 4 + k]).any()}
     return MapRoute(lat_deg=arr[:, 1], lon_deg=arr[:, 0], ele_m=arr[:, 2],
-                    time_s=None if np.all(np.isnan(stamps)) else stamps, sensors=sensors)
+                    time_s=None if np.all(np.isnan(stamps)) else stamps, sensors=sensors,
+                    sport=sport)
 
 
 def _kmz_document(path: Path, data: bytes) -> bytes:

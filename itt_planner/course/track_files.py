@@ -1,6 +1,6 @@
 """Read GPS track and ride files (GPX tracks and routes, TCX activities and courses, FIT,
-CSV, and the routes of web maps, KML/KMZ and GeoJSON, in `map_files`; each also gzipped)
-into one record type.
+CSV, TrainingPeaks' PWX in `pwx_files`, and the routes of web maps, KML/KMZ and GeoJSON,
+in `map_files`; each also gzipped) into one record type.
 
 Courses use only the positions; ride import also uses the stamps, speed and power.
 Parsing is left to well-kept libraries (gpxpy, tcxreader, fitdecode in `fit_records`);
@@ -35,11 +35,12 @@ from itt_planner.course.map_files import (
     sensor_value,
     xml_text,
 )
+from itt_planner.course.pwx_files import read_pwx
 from itt_planner.errors import CourseError
 
 #: FIT stores positions in semicircles: 2^31 semicircles = 180 degrees.
 _SEMICIRCLE_DEG = 180.0 / 2**31
-SUFFIXES = (".gpx", ".tcx", ".fit", ".csv", ".kml", ".kmz", ".geojson")
+SUFFIXES = (".gpx", ".tcx", ".fit", ".csv", ".kml", ".kmz", ".geojson", ".pwx")
 #: A gzipped file of one of `SUFFIXES` (`ride.fit.gz`) is read as that format.
 GZIP_SUFFIX = ".gz"
 
@@ -117,7 +118,7 @@ def track_bytes(path: Path) -> bytes:
 
 
 def read_recording(path: str | Path) -> Recording:
-    """Read a GPX, TCX, FIT, CSV, KML, KMZ or GeoJSON file, or one of those gzipped
+    """Read a GPX, TCX, FIT, CSV, PWX, KML, KMZ or GeoJSON file, or one of those gzipped
     (`ride.fit.gz`).
 
     Raises:
@@ -127,7 +128,8 @@ def read_recording(path: str | Path) -> Recording:
     path = Path(path)
     suffix = track_format(path)
     readers = {".gpx": _read_gpx, ".tcx": _read_tcx, ".fit": _read_fit, ".csv": _read_csv,
-               ".kml": _read_kml, ".kmz": _read_kml, ".geojson": _read_geojson}
+               ".kml": _read_kml, ".kmz": _read_kml, ".geojson": _read_geojson,
+               ".pwx": _read_pwx}
     if not suffix:
         msg = (f"{path}: unknown track format {path.suffix.lower()!r}; expected one of "
                f"{', '.join(SUFFIXES)} (or the same gzipped, {GZIP_SUFFIX})")
@@ -160,7 +162,7 @@ def _map_recording(path: Path, route: MapRoute) -> Recording:
                      lon_deg=route.lon_deg, ele_m=route.ele_m, time_s=route.time_s,
                      power_w=sensors.get("power"), speed_mps=sensors.get("speed"),
                      cadence_rpm=sensors.get("cadence"),
-                     temperature_c=sensors.get("temperature"))
+                     temperature_c=sensors.get("temperature"), sport=route.sport)
 
 
 def _read_kml(path: Path, data: bytes) -> Recording:
@@ -169,6 +171,10 @@ def _read_kml(path: Path, data: bytes) -> Recording:
 
 def _read_geojson(path: Path, data: bytes) -> Recording:
     return _map_recording(path, read_geojson(path, data))
+
+
+def _read_pwx(path: Path, data: bytes) -> Recording:
+    return _map_recording(path, read_pwx(path, data))
 
 
 def _gpx_extensions(point: Any) -> dict[str, float]:

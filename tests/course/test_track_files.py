@@ -254,3 +254,41 @@ def test_a_run_is_read_as_a_route_and_named(tmp_path: Path) -> None:
                    + "".join(f'<trkpt lat="45.{i:04d}" lon="11.0"><ele>100</ele></trkpt>'
                              for i in range(5)) + "</trkseg></trk></gpx>")
     assert read_recording(gpx).sport == "1" and not read_recording(gpx).other_sport
+
+
+def _pwx(samples: str, sport: str = "Bike") -> str:
+    """A PWX file as IpBike writes it (GoldenCheetah's tests: `IpBike_902.pwx`)."""
+    return ('<?xml version="1.0"?>\n<pwx xmlns="http://www.peaksware.com/PWX/1/0" '
+            'version="1.0" creator="iforpowell.com/1.0" >\n<workout>\n'
+            f"<sportType>{sport}</sportType>\n<time>2016-01-11T07:07:32</time>\n"
+            '<summarydata><beginning>0</beginning><duration>3070</duration></summarydata>\n'
+            f"{samples}</workout>\n</pwx>\n")
+
+
+def test_pwx_workout(tmp_path: Path) -> None:
+    """TrainingPeaks' PWX (WKO, GoldenCheetah and IpBike export it): samples stamped by
+    their offset from the workout's start, with position, altitude, speed, power, cadence
+    and temperature; a sample without a reading is missing there, not a broken file."""
+    rows = "".join(
+        f"<sample>\n<timeoffset>{i + 1}</timeoffset>\n<hr>111</hr>\n<spd>{8 + 0.01 * i}</spd>"
+        f"\n<pwr>{200 + i}</pwr>\n<pwrright>0</pwrright>\n<cad>90</cad>\n<dist>{8 * i}</dist>"
+        f"\n<lat>{46.08 + i * 8 / 111_195:.7f}</lat>\n<lon>14.5166</lon>\n"
+        f"<alt>{300 + 0.05 * i}</alt>\n<temp>18.2</temp>\n</sample>\n" for i in range(400))
+    path = tmp_path / "ride.pwx"
+    path.write_text(_pwx(rows + "<sample><timeoffset>401</timeoffset></sample>\n"))
+    rec = read_recording(path)
+    assert len(rec) == 401 and rec.sport == "Bike" and not rec.other_sport
+    assert rec.time_s is not None
+    assert rec.time_s[0] == datetime(2016, 1, 11, 7, 7, 33, tzinfo=UTC).timestamp()
+    assert rec.power_w is not None and rec.power_w[5] == 205 and np.isnan(rec.power_w[-1])
+    assert rec.speed_mps is not None and rec.speed_mps[0] == 8.0
+    assert rec.cadence_rpm is not None and rec.temperature_c is not None
+    assert 3150 < load_course(path).length_m < 3250
+    path.write_text(_pwx(rows, sport="Run"))
+    assert read_recording(path).other_sport
+    path.write_text(_pwx(""))
+    with pytest.raises(CourseError, match=r"ride\.pwx: no samples in the PWX file"):
+        read_recording(path)
+    path.write_text("<?xml version='1.0'?><gpx/>")
+    with pytest.raises(CourseError, match=r"ride\.pwx: not a PWX file \(its root is <gpx>\)"):
+        read_recording(path)
