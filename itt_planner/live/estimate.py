@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable
 from typing import Any
 
@@ -85,6 +85,8 @@ class StateEstimator:
         self._speed_t = -math.inf  # stamp of the last accepted wheel speed
         self._rejected_run: list[GpsFix] = []
         self._gps_t = -math.inf
+        # Intervals between accepted fixes: how long without one is a dropout.
+        self._fix_intervals: deque[float] = deque(maxlen=settings.gps_intervals_kept)
         #: The per-sensor hooks: sample type -> (sensor name, hook). The name keys the
         #: counters, the stamp checks and the engine's input diagnostics.
         self.hooks: dict[type, tuple[str, Hook]] = {
@@ -192,6 +194,7 @@ class StateEstimator:
         self._rejected_run.clear()
         self._update(np.array([1.0, 0.0]), match.s_m, std * std)
         self._update_lateral(match.n_m, fix.stamp_s)
+        self._fix_intervals.append(fix.stamp_s - self._gps_t)
         self._gps_t = fix.stamp_s
         self.counters["gps_accepted"] += 1
         return True
@@ -277,6 +280,15 @@ class StateEstimator:
         self._gps_t = stamp
         self.counters["gps_accepted"] += 1
 
+    def _gps_stale_s(self) -> float:
+        """How long without a fix is a dropout: `gps_stale_s`, or longer for a recorder
+        that writes fixes far apart (`EstimatorSettings.gps_interval_factor`)."""
+        st = self.settings
+        if len(self._fix_intervals) < 5:
+            return st.gps_stale_s
+        return max(st.gps_stale_s,
+                   st.gps_interval_factor * float(np.percentile(self._fix_intervals, 90)))
+
     def _predict(self, stamp: float) -> None:
         """Advance the filter and the published `s` to `stamp` (no-op if not later)."""
         assert self._t is not None
@@ -285,7 +297,7 @@ class StateEstimator:
             return
         st = self.settings
         v = self._x[1]
-        if stamp - self._speed_t > st.speed_stale_s and stamp - self._gps_t > st.gps_stale_s:
+        if stamp - self._speed_t > st.speed_stale_s and stamp - self._gps_t > self._gps_stale_s():
             # No fresh speed nor fix: do not run on at the last speed through a long gap.
             decay = math.exp(-dt / st.speed_decay_s)
             ds = v * st.speed_decay_s * (1 - decay)

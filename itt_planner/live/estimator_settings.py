@@ -28,6 +28,11 @@ class EstimatorSettings:
         lost_after: this many consecutive rejected fixes trigger a global re-acquisition.
         speed_stale_s, gps_stale_s, speed_decay_s: with neither a wheel speed nor a fix
             this recent, the speed decays with this time constant instead of running on.
+        gps_interval_factor: ... nor a fix within this many times the 90th percentile of
+            the last `gps_intervals_kept` intervals between fixes, if that is longer than
+            `gps_stale_s`: a smart recorder writes a fix every 15-27 s on a straight (a
+            2009 Garmin TCX in stravalib's tests), and a rider riding on between them at
+            8 m/s decayed to 0.1 m/s before each (fallback advice for a stopped rider).
         power_hold_s: a reading holds this long at most (smart recording: 1-8 s steps), then 0.
         max_power_w: readings above this are spikes.
         max_speed_mps: wheel speeds above this are glitches.
@@ -63,6 +68,8 @@ class EstimatorSettings:
     lost_after: int = 5
     speed_stale_s: float = 3.0
     gps_stale_s: float = 10.0
+    gps_interval_factor: float = 1.5
+    gps_intervals_kept: int = 30
     speed_decay_s: float = 2.0
     power_hold_s: float = 10.0
     max_power_w: float = 3000.0
