@@ -16,7 +16,7 @@ from datetime import datetime, timedelta
 from pathlib import Path
 from typing import Any
 
-from itt_planner.errors import CourseError
+from itt_planner.course.map_files import ride_leg
 
 #: The sports (fitdecode's names of the FIT profile's `sport` values) that are a ride.
 BIKE_SPORTS = frozenset({"cycling", "e_biking"})
@@ -76,13 +76,8 @@ def _bike_leg(path: Path, rows: list[Row], sessions: list[Row]) -> list[Row]:
         CourseError: no cycling session has 3 positions or more (naming every leg).
     """
     legs = [(str(s.get("sport")), _rows_within(rows, s)) for s in sessions]
-    bikes = [leg for sport, leg in legs if sport in BIKE_SPORTS and _fixes(leg) >= 3]
-    if not bikes:
-        found = "; ".join(f"{sport}: {len(leg)} records, {_fixes(leg)} with a position"
-                          for sport, leg in legs)
-        raise CourseError(f"{path}: a multisport activity without a cycling leg with GPS "
-                          f"positions ({found})")
-    return max(bikes, key=_fixes)
+    return ride_leg(path, legs, is_ride=BIKE_SPORTS.__contains__, fixes=_fixes,
+                    points="records", missing="activity without a cycling leg")
 
 
 def _rows_within(rows: list[Row], session: Row) -> list[Row]:

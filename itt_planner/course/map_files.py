@@ -13,8 +13,9 @@ Google Earth and GPS Visualizer write a ride's sensors) give power, speed, caden
 temperature by `SENSOR_NAMES`.
 
 Also what every track format shares: the clean-up before an XML declaration (`xml_text`),
-the sensor names (`SENSOR_NAMES`, the GPX reader's extensions too) and ISO 8601 stamps
-(`iso_stamp_s`, a CSV's times too).
+the sensor names (`SENSOR_NAMES`, the GPX reader's extensions too), ISO 8601 stamps
+(`iso_stamp_s`, a CSV's times too) and a multisport file's ride leg (`ride_leg`, TCX's
+and FIT's).
 """
 
 from __future__ import annotations
@@ -22,11 +23,11 @@ from __future__ import annotations
 import io
 import json
 import zipfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -45,6 +46,7 @@ SENSORS = ("power", "speed", "cadence", "temperature")
 _Row = tuple[float, ...]
 _NAN = float("nan")
 _NO_SENSORS = (_NAN,) * len(SENSORS)
+T = TypeVar("T")
 
 
 @dataclass(frozen=True, eq=False)
@@ -64,6 +66,23 @@ class MapRoute:
     time_s: np.ndarray | None
     sensors: dict[str, np.ndarray]
     sport: str = ""
+
+
+def ride_leg(path: Path, legs: list[tuple[str, list[T]]], *, is_ride: Callable[[str], bool],
+             fixes: Callable[[list[T]], int], points: str, missing: str) -> list[T]:
+    """The points of a multisport file's ride leg with the most GPS positions; `legs`:
+    (sport, its points) in file order.
+
+    Raises:
+        CourseError: no ride leg has 3 positions or more: "{path}: a multisport {missing}
+            with GPS positions (...)", naming every leg with its `points` and positions.
+    """
+    rides = [leg for sport, leg in legs if is_ride(sport) and fixes(leg) >= 3]
+    if not rides:
+        found = "; ".join(f"{sport}: {len(leg)} {points}, {fixes(leg)} with a position"
+                          for sport, leg in legs)
+        raise CourseError(f"{path}: a multisport {missing} with GPS positions ({found})")
+    return max(rides, key=fixes)
 
 
 def sensor_value(text: str | None) -> float:

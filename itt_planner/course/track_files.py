@@ -32,6 +32,7 @@ from itt_planner.course.map_files import (
     iso_stamp_s,
     read_geojson,
     read_kml,
+    ride_leg,
     sensor_value,
     xml_text,
 )
@@ -270,13 +271,8 @@ def _bike_leg(path: Path, legs: list[tuple[str, list[Any]]]) -> list[Any]:
     def fixes(tps: list[Any]) -> int:
         return sum(tp.latitude is not None and tp.longitude is not None for tp in tps)
 
-    bikes = [tps for sport, tps in legs if sport == "Biking" and fixes(tps) >= 3]
-    if not bikes:
-        found = "; ".join(f"{sport}: {len(tps)} trackpoints, {fixes(tps)} with a position"
-                          for sport, tps in legs)
-        raise CourseError(f"{path}: a multisport session without a Biking activity with GPS "
-                          f"positions ({found})")
-    return max(bikes, key=fixes)
+    return ride_leg(path, legs, is_ride="Biking".__eq__, fixes=fixes, points="trackpoints",
+                    missing="session without a Biking activity")
 
 
 def _read_fit(path: Path, data: bytes) -> Recording:
