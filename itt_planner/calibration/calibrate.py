@@ -185,8 +185,9 @@ def calibrate(rides: Sequence[str | Path | Recording],
     """Fit one rider to the rides (see the module docstring).
 
     Raises:
-        CalibrationError: a ride is unusable (no power, stamps, elevation; too short), or
-            every estimator refused (the message lists each reason).
+        CalibrationError: a ride is unusable (no power or stamps, another sport, too
+            short; one without altitude or speed gives its power alone), or every
+            estimator refused (the message lists each reason).
     """
     prepared = read_rides(list(rides), options.temperature_c)
     if options.setups and len(options.setups) != len(prepared):
