@@ -194,7 +194,8 @@ class StateEstimator:
         self._rejected_run.clear()
         self._update(np.array([1.0, 0.0]), match.s_m, std * std)
         self._update_lateral(match.n_m, fix.stamp_s)
-        self._fix_intervals.append(fix.stamp_s - self._gps_t)
+        if math.isfinite(self._gps_t):
+            self._fix_intervals.append(fix.stamp_s - self._gps_t)
         self._gps_t = fix.stamp_s
         self.counters["gps_accepted"] += 1
         return True
