@@ -13,13 +13,13 @@ which the power-duration curve takes (a CP test is often ridden indoors).
 from __future__ import annotations
 
 import dataclasses
-import io
 from dataclasses import dataclass
 from pathlib import Path
 from typing import cast
 
 import numpy as np
 
+from itt_planner.course.fit_records import fit_messages
 from itt_planner.course.track_files import Recording, track_bytes, track_format
 from itt_planner.errors import IttError
 from itt_planner.logs.ride_import import (
@@ -118,12 +118,7 @@ def _fit_messages(path: Path, message: str) -> list[dict[str, object]]:
     another format or a missing file (these are extras read beside `read_recording`)."""
     if track_format(path) != ".fit" or not path.is_file():
         return []
-    import fitdecode  # noqa: PLC0415  (only FIT carries these fields)
-
-    with fitdecode.FitReader(io.BytesIO(track_bytes(path)),
-                             check_crc=fitdecode.CrcCheck.WARN) as reader:
-        return [{f.name: f.value for f in frame.fields} for frame in reader
-                if frame.frame_type == fitdecode.FIT_FRAME_DATA and frame.name == message]
+    return fit_messages(track_bytes(path), (message,))[message]
 
 
 def record_temperature_c(rec: Recording) -> float | None:

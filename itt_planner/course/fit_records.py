@@ -11,6 +11,7 @@ saved in several sessions, or none) keeps all its records.
 from __future__ import annotations
 
 import io
+from collections.abc import Collection
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from pathlib import Path
@@ -34,6 +35,23 @@ class FitActivity:
     sport: str = ""
 
 
+def fit_messages(data: bytes, names: Collection[str]) -> dict[str, list[Row]]:
+    """The fields of every data message of `data` (a FIT file) named in `names`, by name,
+    in file order (a CRC mismatch is a warning: many exports carry a wrong one).
+
+    Raises:
+        Exception: fitdecode's own errors on a corrupt file (the caller names the file).
+    """
+    import fitdecode  # noqa: PLC0415
+
+    out: dict[str, list[Row]] = {name: [] for name in names}
+    with fitdecode.FitReader(io.BytesIO(data), check_crc=fitdecode.CrcCheck.WARN) as reader:
+        for frame in reader:
+            if frame.frame_type == fitdecode.FIT_FRAME_DATA and frame.name in out:
+                out[frame.name].append({f.name: f.value for f in frame.fields})
+    return out
+
+
 def read_fit_activity(path: Path, data: bytes) -> FitActivity:
     """The records of `data` (the FIT file `path`), only its bike leg when it is multisport.
 
@@ -41,27 +59,19 @@ def read_fit_activity(path: Path, data: bytes) -> FitActivity:
         CourseError: a multisport file without a cycling leg with GPS positions.
         Exception: fitdecode's own errors on a corrupt file (the caller names the file).
     """
-    import fitdecode  # noqa: PLC0415
-
-    rows: list[Row] = []
-    sessions: list[Row] = []
-    device = ""
-    with fitdecode.FitReader(io.BytesIO(data), check_crc=fitdecode.CrcCheck.WARN) as reader:
-        for frame in reader:
-            if frame.frame_type != fitdecode.FIT_FRAME_DATA:
-                continue
-            if frame.name == "file_id" and not device:
-                values = {f.name: f.value for f in frame.fields}
-                device = " ".join(str(values[k]) for k in ("manufacturer", "garmin_product",
-                                                           "product") if values.get(k))
-            elif frame.name == "record":
-                rows.append({f.name: f.value for f in frame.fields})
-            elif frame.name == "session":
-                sessions.append({f.name: f.value for f in frame.fields})
+    messages = fit_messages(data, ("file_id", "record", "session"))
+    rows, sessions = messages["record"], messages["session"]
+    device = next((name for name in map(_device, messages["file_id"]) if name), "")
     sports = {str(s["sport"]) for s in sessions if s.get("sport") is not None}
     if len(sports) > 1:
         return FitActivity(_bike_leg(path, rows, sessions), device, "cycling")
     return FitActivity(rows, device, sports.pop() if sports else "")
+
+
+def _device(file_id: Row) -> str:
+    """The device a `file_id` message names ("" when none)."""
+    return " ".join(str(file_id[k]) for k in ("manufacturer", "garmin_product", "product")
+                    if file_id.get(k))
 
 
 def _fixes(rows: list[Row]) -> int:
