@@ -42,22 +42,43 @@ AIR_DENSITY_OPTION = typer.Option(
     None, "--air-density-kgpm3",
     help="Air density (kg/m^3); default the paper's 1.23 at any altitude (a warning "
          "gives the course's own when it differs by over 3 %).")
+AIR_TEMPERATURE_OPTION = typer.Option(
+    None, "--air-temperature-c",
+    help="The day's air temperature (C): plans in the course's own air, ISA pressure at "
+         "its mean altitude at this temperature (instead of --air-density-kgpm3).")
 
 
 def day_conditions(mu: float, wind_kmh: float, wind_from_deg: float,
-                   air_density_kgpm3: float | None) -> Conditions:
-    """The conditions of the options above, in SI units (`Conditions.from_meteo`); the
-    paper's air density where none is given.
+                   air_density_kgpm3: float | None, air_temperature_c: float | None = None,
+                   mean_altitude_m: float = 0.0) -> Conditions:
+    """The conditions of the options above, in SI units (`Conditions.from_meteo`): the
+    air at `air_temperature_c` on a course at `mean_altitude_m`, else of density
+    `air_density_kgpm3`, else the paper's.
 
     Raises:
         RiderError: a value out of range (names the field).
+        IttError: both an air density and a temperature.
     """
-    from itt_planner.model.conditions import Conditions  # noqa: PLC0415
+    from itt_planner.model.conditions import Conditions, day_air_density_kgpm3  # noqa: PLC0415
 
     conditions = Conditions.from_meteo(wind_kmh=wind_kmh, wind_from_deg=wind_from_deg, mu=mu)
+    check_day_air(air_density_kgpm3, air_temperature_c)
+    if air_temperature_c is not None:
+        air_density_kgpm3 = day_air_density_kgpm3(mean_altitude_m, air_temperature_c)
     if air_density_kgpm3 is None:
         return conditions
     return dataclasses.replace(conditions, air_density_kgpm3=air_density_kgpm3)
+
+
+def check_day_air(air_density_kgpm3: float | None, air_temperature_c: float | None) -> None:
+    """Refuse both `--air-density-kgpm3` and `--air-temperature-c`.
+
+    Raises:
+        IttError: both given.
+    """
+    if air_density_kgpm3 is not None and air_temperature_c is not None:
+        raise IttError("--air-density-kgpm3 and --air-temperature-c: give one (the "
+                       "temperature sets the density at the course's altitude)")
 
 
 @contextmanager

@@ -20,6 +20,7 @@ import typer
 
 from itt_planner.cli._app import (
     AIR_DENSITY_OPTION,
+    AIR_TEMPERATURE_OPTION,
     JSON_OPTION,
     MU_OPTION,
     WIND_FROM_DEG_OPTION,
@@ -65,6 +66,7 @@ def plan_summary(plan: Any, course: Any) -> dict[str, Any]:
         "verification": plan.meta.get("verification"),
         "attempts": plan.meta.get("attempts", []),
         "warnings": warnings,
+        "conditions": dict(plan.meta.get("conditions", {})),
         "corners": [
             {"apex_s_m": round(r.apex_s_m, 1), "min_radius_m": round(r.min_radius_m, 1),
              "braking_s_m": None if r.braking_s_m is None else round(r.braking_s_m, 1),
@@ -102,6 +104,7 @@ def plan_cli(
     wind_kmh: float = WIND_KMH_OPTION,
     wind_from_deg: float = WIND_FROM_DEG_OPTION,
     air_density_kgpm3: float | None = AIR_DENSITY_OPTION,
+    air_temperature_c: float | None = AIR_TEMPERATURE_OPTION,
     max_time_s: float | None = typer.Option(
         None, "--max-time-s", help="Solver time budget (s); default scales with the course."),
     max_iter: int | None = typer.Option(
@@ -134,7 +137,8 @@ def plan_cli(
             raise SolveError(f"--line {line!r}: 'centre', or 'shortest' with --model 1d "
                              "(the 3D model chooses its own line)", status="invalid_input")
         built = load_course(course)
-        conditions = day_conditions(mu, wind_kmh, wind_from_deg, air_density_kgpm3)
+        conditions = day_conditions(mu, wind_kmh, wind_from_deg, air_density_kgpm3,
+                                    air_temperature_c, built.mean_altitude_m)
         settings = OcpSettings(max_cpu_time_s=max_time_s, max_iter=max_iter)
         # With its solver point: a node given this plan (`--plan`) re-solves warm. On the
         # shortest line the point is the line's NLP's, so none is kept.
@@ -142,8 +146,11 @@ def plan_cli(
                   if line == "shortest" else
                   solve_keeping_point(built, load_rider(rider), conditions, settings, model))
         result = plan_summary(solved, built) | {"line": line}
-        if air_density_kgpm3 is None and (note := own_air_note(built.mean_altitude_m,
-                                                               conditions.air_density_kgpm3)):
+        if air_temperature_c is not None:
+            result["conditions"]["air_temperature_c"] = air_temperature_c
+        day_air_given = air_density_kgpm3 is not None or air_temperature_c is not None
+        if not day_air_given and (note := own_air_note(built.mean_altitude_m,
+                                                       conditions.air_density_kgpm3)):
             result["warnings"].append(note)
         if not result["success"] and allow_unconverged:
             result["allowed_unconverged"] = True

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -9,11 +10,13 @@ import typer
 
 from itt_planner.cli._app import (
     AIR_DENSITY_OPTION,
+    AIR_TEMPERATURE_OPTION,
     JSON_OPTION,
     MU_OPTION,
     WIND_FROM_DEG_OPTION,
     WIND_KMH_OPTION,
     app,
+    check_day_air,
     day_conditions,
     emit,
     errors_to_exit,
@@ -32,6 +35,9 @@ def _human_import(r: dict[str, Any]) -> str:
                  f"{r['gps_jumps']} GPS jumps, {r['power_spikes']} power spikes, "
                  f"{r['records_without_position']} records without position "
                  "(all kept as recorded)")
+    if r["air_temperature_c"] is not None:
+        lines.append(f"  air temperature {r['air_temperature_c']:.1f} C (median of the "
+                     "records; replay's --air-temperature-c plans in it)")
     lines += [f"WARNING: {w}" for w in r["warnings"]]
     return "\n".join(lines)
 
@@ -94,6 +100,7 @@ def replay_cli(
     wind_kmh: float = WIND_KMH_OPTION,
     wind_from_deg: float = WIND_FROM_DEG_OPTION,
     air_density_kgpm3: float | None = AIR_DENSITY_OPTION,
+    air_temperature_c: float | None = AIR_TEMPERATURE_OPTION,
     cache_dir: Path = typer.Option(Path(".itt_cache"), "--cache-dir",
                                    help="Where full-course plans are cached."),
     live_timing: bool = typer.Option(
@@ -126,6 +133,8 @@ def replay_cli(
         if resolve_model not in RESOLVE_MODELS:
             raise IttError(f"--course-resolve-model {resolve_model!r}: choose one of "
                            f"{', '.join(RESOLVE_MODELS)}")
+        # The session sets the air of a temperature at its course's altitude.
+        check_day_air(air_density_kgpm3, air_temperature_c)
         day = day_conditions(mu, wind_kmh, wind_from_deg, air_density_kgpm3)
         config = SessionConfig(course=course, rider=rider, model=model,
                                plan="" if plan is None else str(plan),
@@ -134,7 +143,9 @@ def replay_cli(
                                course_resolve_model=resolve_model, namespace=namespace,
                                grip_mu=day.mu_x, wind_speed_mps=day.wind_speed_mps,
                                wind_from_rad=day.wind_from_rad,
-                               air_density_kgpm3=day.air_density_kgpm3)
+                               air_density_kgpm3=day.air_density_kgpm3,
+                               air_temperature_c=(math.nan if air_temperature_c is None
+                                                  else air_temperature_c))
         result = replay_ride(log, config, output=out, rrd=rrd, rerun_sinks=tuple(rerun),
                              settings=settings, progress=progress_enabled()).as_dict()
     emit(result, as_json, _human_replay)

@@ -80,6 +80,8 @@ class ImportSummary:
     records_without_position: int = 0
     #: The sport the file names ("" when none); another than cycling is a warning.
     sport: str = ""
+    #: The median recorded air temperature (C; NaN when none): in the log's metadata.
+    air_temperature_c: float = math.nan
     warnings: list[str] = field(default_factory=list)
 
     def as_dict(self) -> dict[str, Any]:
@@ -96,6 +98,8 @@ class ImportSummary:
             "gps_jumps": self.gps_jumps, "power_spikes": self.power_spikes,
             "records_without_position": self.records_without_position,
             "sport": self.sport, "warnings": list(self.warnings),
+            "air_temperature_c": (self.air_temperature_c
+                                  if math.isfinite(self.air_temperature_c) else None),
         }
 
 
@@ -130,8 +134,9 @@ def import_ride(source: str | Path, output: str | Path, *, rider: str = "",
         raise RideLogError(f"{source}: no record has a timestamp")
     times = rec.time_s[order]
 
+    temperature_c = _median_temperature_c(rec, order)
     metadata = RideMetadata(source=source.name, sha256=rec.sha256, device=rec.device,
-                            rider=rider)
+                            rider=rider, air_temperature_c=temperature_c)
     with RideLogWriter(output, metadata=metadata, namespace=namespace) as writer:
         for i in order:
             _write_record(writer, rec, int(i))
@@ -149,10 +154,21 @@ def import_ride(source: str | Path, output: str | Path, *, rider: str = "",
         gps_jumps=count_gps_jumps(lat[has_pos], lon[has_pos], times[has_pos]),
         power_spikes=int(np.sum(power > POWER_SPIKE_W)),
         records_without_position=int(np.sum(~has_pos)), sport=rec.sport,
+        air_temperature_c=temperature_c,
         warnings=[(f"the file is a {rec.sport!r} activity, not a ride: its speed and power "
                   "are not a cyclist's, and a replay's advice for them means nothing")
                   ] if rec.other_sport else [],
     )
+
+
+def _median_temperature_c(rec: Recording, order: np.ndarray) -> float:
+    """The median of the air temperatures recorded in the records `order` (NaN when
+    there are none): the day's air, whatever the sun did to the head unit for a while."""
+    if rec.temperature_c is None:
+        return math.nan
+    values = rec.temperature_c[order]
+    values = values[np.isfinite(values)]
+    return float(np.median(values)) if len(values) else math.nan
 
 
 def _write_record(writer: RideLogWriter, rec: Recording, i: int) -> None:

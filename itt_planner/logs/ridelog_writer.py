@@ -7,11 +7,13 @@ stamp. Chunks are closed by size and by log time, so a crash loses little.
 
 from __future__ import annotations
 
+import math
 from collections import Counter
-from dataclasses import asdict, dataclass
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from types import TracebackType
-from typing import IO, Any
+from typing import IO, Any, cast
 
 from mcap.writer import CompressionType, Writer
 
@@ -45,16 +47,36 @@ CHUNK_PERIOD_S = 30.0
 
 @dataclass(frozen=True)
 class RideMetadata:
-    """Where a ride log comes from (the `itt_ride` metadata record)."""
+    """Where a ride log comes from (the `itt_ride` metadata record).
+
+    `air_temperature_c` is the median of the recorded ride's air temperatures (NaN when
+    it has none, and then left out of the record): a replay's warning about the air its
+    plan assumes gives the day's.
+    """
 
     source: str = ""
     sha256: str = ""
     device: str = ""
     rider: str = ""
+    air_temperature_c: float = math.nan
 
     def as_record(self) -> dict[str, str]:
         """The metadata record's string map."""
-        return {k: str(v) for k, v in asdict(self).items()}
+        return {k: str(v) for k, v in asdict(self).items()
+                if not (isinstance(v, float) and math.isnan(v))}
+
+    @classmethod
+    def from_record(cls, record: Mapping[str, str]) -> RideMetadata:
+        """The record `as_record` wrote (fields it lacks, or cannot be read, at their
+        defaults: a log from before a field existed, or another tool's)."""
+        kwargs: dict[str, Any] = {}
+        for f in fields(cls):
+            if f.name in record:
+                try:
+                    kwargs[f.name] = cast(type[Any], type(f.default))(record[f.name])
+                except ValueError:
+                    continue
+        return cls(**kwargs)
 
 
 class RideLogWriter:

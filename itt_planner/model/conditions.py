@@ -24,6 +24,8 @@ _BARO_K_PER_M = 2.25577e-5
 _BARO_EXP = 5.25588
 #: Specific gas constant of dry air, J/(kg K).
 _R_DRY = 287.05
+#: The air temperatures (C) a plan takes: a race is ridden within them.
+AIR_TEMPERATURE_RANGE_C = (-30.0, 50.0)
 #: Temperature used when neither the record nor the caller gives one (15 C, ISA).
 DEFAULT_TEMPERATURE_C = 15.0
 
@@ -39,16 +41,40 @@ def air_density_kgpm3(altitude_m: np.ndarray | float, temperature_c: np.ndarray 
     return pressure / (_R_DRY * (np.asarray(temperature_c, float) + 273.15))
 
 
-def own_air_note(mean_altitude_m: float, assumed_kgpm3: float) -> str | None:
-    """The air at a course's mean altitude (ISA, 15 C) when it differs from the density
-    a plan assumes by more than 3 % (drag scales with it), else None."""
-    own = float(air_density_kgpm3(mean_altitude_m, DEFAULT_TEMPERATURE_C))
+def day_air_density_kgpm3(mean_altitude_m: float, temperature_c: float) -> float:
+    """The air of a race day at `temperature_c` on a course at `mean_altitude_m`
+    (`air_density_kgpm3`): a plan's one density.
+
+    Raises:
+        RiderError: a temperature outside `AIR_TEMPERATURE_RANGE_C` (not a race day's).
+    """
+    low, high = AIR_TEMPERATURE_RANGE_C
+    if not low <= temperature_c <= high:
+        msg = f"conditions: air temperature {temperature_c!r} C, expected {low:.0f} to {high:.0f}"
+        raise RiderError(msg)
+    return float(air_density_kgpm3(mean_altitude_m, temperature_c))
+
+
+def own_air_note(mean_altitude_m: float, assumed_kgpm3: float,
+                 recorded_temperature_c: float = math.nan) -> str | None:
+    """The air at a course's mean altitude when it differs from the density a plan
+    assumes by more than 3 % (drag scales with it), else None: at the temperature a ride's
+    records give (`recorded_temperature_c`), else ISA's 15 C."""
+    recorded = math.isfinite(recorded_temperature_c)
+    temperature_c = recorded_temperature_c if recorded else DEFAULT_TEMPERATURE_C
+    own = float(air_density_kgpm3(mean_altitude_m, temperature_c))
     if abs(own / assumed_kgpm3 - 1.0) <= 0.03:
         return None
+    if recorded:
+        return (f"the plan assumes air at {assumed_kgpm3:.2f} kg/m^3; the ride's records "
+                f"give {temperature_c:.1f} C, and at the course's mean altitude, "
+                f"{mean_altitude_m:.0f} m, that air is {own:.2f}: --air-temperature-c "
+                f"{temperature_c:.1f} (plan, replay; the node's air_temperature_c) plans in it")
     return (f"the plan assumes air at {assumed_kgpm3:.2f} kg/m^3; at the course's mean "
             f"altitude, {mean_altitude_m:.0f} m, it is {own:.2f} at "
-            f"{DEFAULT_TEMPERATURE_C:.0f} C (ISA): --air-density-kgpm3 {own:.2f} (plan, "
-            f"replay; the node's air_density_kgpm3) plans in it")
+            f"{DEFAULT_TEMPERATURE_C:.0f} C (ISA): --air-density-kgpm3 {own:.2f}, or "
+            "--air-temperature-c with the day's temperature (plan, replay; the node's "
+            "air_density_kgpm3, air_temperature_c) plans in it")
 
 
 @dataclass(frozen=True)

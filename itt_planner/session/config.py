@@ -11,6 +11,7 @@ it back (`SessionConfig.from_metadata`) for the ride's report.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -68,8 +69,12 @@ class SessionConfig:
         wind_from_rad: direction the wind blows from, clockwise from North.
         air_density_kgpm3: air density (the paper's 1.23 by default, at any altitude:
             the session warns when the course's own differs by over 3 %).
+        air_temperature_c: the day's air temperature (C); NaN (the default): not
+            given. Given, the air density is the course's own: ISA pressure at its mean
+            altitude at this temperature (`model.conditions.air_density_kgpm3`), and
+            `air_density_kgpm3` must be left at its default.
             A plan given by file (`plan`) brings the conditions it was solved in; these
-            four must then be left at their defaults or agree with it.
+            must then be left at their defaults or agree with it.
         deterministic: no wall-clock values in advice and diagnostics and no wall-time
             caps, so two runs over one log give byte-identical advice (replays); False
             is the live behaviour (overruns judged by the wall clock).
@@ -92,6 +97,7 @@ class SessionConfig:
     wind_speed_mps: float = 0.0
     wind_from_rad: float = 0.0
     air_density_kgpm3: float = PAPER_AIR_DENSITY_KGPM3
+    air_temperature_c: float = math.nan
     deterministic: bool = False
     namespace: str = DEFAULT_NAMESPACE
 
@@ -111,21 +117,36 @@ class SessionConfig:
                 continue
             text, kind = values[f.name], cast(type[Any], type(f.default))
             try:
-                kwargs[f.name] = {"True": True, "False": False}[text] if kind is bool \
-                    else kind(text)
+                value = {"True": True, "False": False}[text] if kind is bool else kind(text)
             except (KeyError, ValueError):
                 raise IttError(f"{source}: session metadata {f.name}={text!r} is not a "
                                f"{kind.__name__}") from None
+            # The default's own NaN ("not given"): dataclass equality compares fields as
+            # tuples, identity first, so a config read back equals the one written.
+            kwargs[f.name] = math.nan if kind is float and math.isnan(value) else value
         return cls(**kwargs)  # type: ignore[arg-type]  # each value of its field's type
 
-    def conditions(self) -> Conditions:
-        """The grip, wind and air asked for (a plan given by file has its own:
-        `session_plan`)."""
-        from itt_planner.model.conditions import Conditions  # noqa: PLC0415
+    def __post_init__(self) -> None:
+        if not math.isnan(self.air_temperature_c) \
+                and self.air_density_kgpm3 != PAPER_AIR_DENSITY_KGPM3:
+            raise IttError(f"air_density_kgpm3 {self.air_density_kgpm3} and air_temperature_c "
+                           f"{self.air_temperature_c}: give one (the temperature sets the "
+                           "density at the course's altitude)")
 
+    def conditions(self, mean_altitude_m: float) -> Conditions:
+        """The grip, wind and air asked for on a course at `mean_altitude_m` (a plan
+        given by file has its own: `session_plan`).
+
+        Raises:
+            RiderError: a value out of range (names the field).
+        """
+        from itt_planner.model.conditions import Conditions, day_air_density_kgpm3  # noqa: PLC0415
+
+        density = (self.air_density_kgpm3 if math.isnan(self.air_temperature_c) else
+                   day_air_density_kgpm3(mean_altitude_m, self.air_temperature_c))
         return Conditions(mu_x=self.grip_mu, mu_y=self.grip_mu,
                           wind_speed_mps=self.wind_speed_mps, wind_from_rad=self.wind_from_rad,
-                          air_density_kgpm3=self.air_density_kgpm3)
+                          air_density_kgpm3=density)
 
 
 def session_plan(config: SessionConfig, course: Course, rider: Rider
@@ -143,7 +164,7 @@ def session_plan(config: SessionConfig, course: Course, rider: Rider
     from itt_planner.ocp.course_settings import OcpSettings  # noqa: PLC0415
     from itt_planner.ocp.plan import Plan  # noqa: PLC0415
 
-    conditions = config.conditions()
+    conditions = config.conditions(course.mean_altitude_m)
     if config.plan:
         plan = Plan.load(config.plan)
         _check_plan_course(plan, course, config.plan)

@@ -25,7 +25,13 @@ from tqdm import tqdm
 from itt_msgs_py import registry, topics
 from itt_planner.errors import RideLogError
 from itt_planner.live.advice_shaping import advice_stats
-from itt_planner.logs.ridelog import SESSION_METADATA, RideLogReader, message_count
+from itt_planner.logs.ridelog import (
+    METADATA_NAME,
+    SESSION_METADATA,
+    RideLogReader,
+    message_count,
+)
+from itt_planner.logs.ridelog_writer import RideMetadata
 from itt_planner.session.config import SessionConfig
 from itt_planner.session.ride_session import RideSession
 
@@ -234,10 +240,13 @@ def _report(result: ReplayResult, session: RideSession, reader: RideLogReader,
     result.fallbacks = session.fallbacks
     result.counts = session.counts()
     result.conditions = asdict(session.conditions)
+    if math.isfinite(session.config.air_temperature_c):
+        result.conditions["air_temperature_c"] = session.config.air_temperature_c
     result.warnings.extend(reader.warnings)
     result.warnings.extend(f"input had {n} messages on {topic}: replaced by the replay's own"
                            for topic, n in sorted(replaced.items()))
-    result.warnings.extend(session.warnings())
+    ride = RideMetadata.from_record(reader.metadata.get(METADATA_NAME, {}))
+    result.warnings.extend(session.warnings(ride.air_temperature_c))
     if session.advice is not None:
         result.advice_stats = advice_stats(session.advice)
         if unexplained := result.advice_stats["unexplained_steps"]:

@@ -231,17 +231,21 @@ class RideSession:
         """The grip, wind and air the session's plans are solved in."""
         return self.engine.horizon.planner.conditions
 
-    def setup_warnings(self) -> list[str]:
+    def setup_warnings(self, recorded_air_temperature_c: float = math.nan) -> list[str]:
         """What the session's set-up assumes that the course says otherwise (known at
-        start: the node logs them then)."""
+        start: the node logs them then): the course's own air, at the temperature a
+        replayed ride's records give (`recorded_air_temperature_c`), else ISA's 15 C,
+        unless the config gave the day's temperature."""
+        if math.isfinite(self.config.air_temperature_c):
+            return []
         note = own_air_note(self.engine.course.mean_altitude_m,
-                            self.conditions.air_density_kgpm3)
+                            self.conditions.air_density_kgpm3, recorded_air_temperature_c)
         return [note] if note else []
 
-    def warnings(self) -> list[str]:
+    def warnings(self, recorded_air_temperature_c: float = math.nan) -> list[str]:
         """What the session did not use silently, one line each with its count."""
         counts = self.engine.counts
-        out = self.setup_warnings()
+        out = self.setup_warnings(recorded_air_temperature_c)
         if not counts.plan_converged:
             out.append(f"the plan in force is not converged ({self.engine.plan.status}, "
                        f"{counts.plan_status}): advice from it is not optimal")

@@ -16,7 +16,7 @@ from support.mcap_readers import check_all_readers, rerun_value
 from typer.testing import CliRunner
 
 from itt_planner.cli import app
-from itt_planner.course.track_files import file_sha256
+from itt_planner.course.track_files import file_sha256, read_recording
 from itt_planner.errors import RideLogError
 from itt_planner.live.samples import GpsFix, PowerReading, WheelSpeed
 from itt_planner.logs.ride_import import (
@@ -27,6 +27,7 @@ from itt_planner.logs.ride_import import (
     ridden_gaps,
 )
 from itt_planner.logs.ridelog import RideLogReader
+from itt_planner.logs.ridelog_writer import RideMetadata
 
 RIDES = ["edge1000_ardennes_2019.fit", "edge810_vector_stjohns_2013.fit",
          "elemnt_shanghai_2019_stopgo.fit", "sauerland_2025.fit", "zwift_bologna_tt_virtual.tcx"]
@@ -102,8 +103,19 @@ def test_every_ride_imports_with_matching_counts(name: str, imported: Imports,
     reader = RideLogReader(summary.output)
     entries = list(reader)
     assert reader.errors == [] and reader.warnings == []
-    assert reader.metadata["itt_ride"] == {"source": name, "sha256": file_sha256(src),
-                                           "device": summary.device, "rider": "R"}
+    meta = dict(reader.metadata["itt_ride"])
+    temperature = meta.pop("air_temperature_c", None)
+    assert meta == {"source": name, "sha256": file_sha256(src), "device": summary.device,
+                    "rider": "R"}
+    # The day's air: the median of the records' temperatures, when the file has them.
+    recorded = read_recording(src).temperature_c
+    if recorded is None or not np.isfinite(recorded).any():
+        assert temperature is None
+        assert math.isnan(summary.air_temperature_c)
+    else:
+        assert float(temperature or "nan") == pytest.approx(np.nanmedian(recorded), abs=0.05)
+        assert RideMetadata.from_record(reader.metadata["itt_ride"]).air_temperature_c \
+            == summary.air_temperature_c
     counts = {t: sum(1 for e in entries if e[0] == t) for t in summary.topics}
     assert counts == summary.topics
     stamps = [s for _, s, _ in entries]

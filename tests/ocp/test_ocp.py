@@ -474,6 +474,23 @@ def test_plan_cli_air_at_the_courses_altitude(tmp_path: Path) -> None:
     at_sea = json.loads(runner.invoke(app, ["plan", "--course", str(low), "--model", "1d",
                                             "--json"]).stdout)
     assert not [w for w in at_sea["warnings"] if "air" in w]
+    # The day's temperature instead: ISA pressure at the course's mean altitude.
+    mild = json.loads(runner.invoke(app, ["plan", "--course", str(high), "--model", "1d",
+                                          "--air-temperature-c", "15", "--json"]).stdout)
+    hot = json.loads(runner.invoke(app, ["plan", "--course", str(high), "--model", "1d",
+                                         "--air-temperature-c", "35", "--json"]).stdout)
+    assert not [w for w in mild["warnings"] + hot["warnings"] if "air" in w]
+    assert mild["conditions"]["air_temperature_c"] == 15.0
+    assert mild["conditions"]["air_density_kgpm3"] == pytest.approx(1.09, abs=0.005)
+    assert hot["conditions"]["air_density_kgpm3"] == pytest.approx(
+        1.09 * 288.15 / 308.15, abs=0.005)
+    assert mild["finish_time_s"] == pytest.approx(thin["finish_time_s"], rel=1e-3)
+    assert hot["finish_time_s"] < mild["finish_time_s"]
+    for bad, message in ((["--air-temperature-c", "35", "--air-density-kgpm3", "1.1"],
+                          "give one"), (["--air-temperature-c", "80"], "air temperature 80")):
+        result = runner.invoke(app, ["plan", "--course", str(high), "--model", "1d", *bad,
+                                     "--json"])
+        assert result.exit_code == 1 and message in json.loads(result.stdout)["error"]
 
 
 def test_rider_cornering_limit_lowers_corner_speed() -> None:

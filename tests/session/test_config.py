@@ -12,10 +12,10 @@ import pytest
 from support.courses import straight
 
 from itt_planner.course.geometry import COURSE_SUFFIX, Course, GeoOrigin
-from itt_planner.errors import IttError, SolveError
+from itt_planner.errors import IttError, RiderError, SolveError
 from itt_planner.live.course_replan import CourseReplanSettings
 from itt_planner.live.engine import EngineSettings
-from itt_planner.model.conditions import Conditions
+from itt_planner.model.conditions import Conditions, air_density_kgpm3
 from itt_planner.model.rider import PRESETS
 from itt_planner.ocp.course_problem import solve_plan
 from itt_planner.ocp.horizon_settings import HorizonSettings
@@ -108,3 +108,23 @@ def test_a_logged_config_reads_back() -> None:
         SessionConfig.from_metadata({**logged, "horizon_m": "far"}, "x.mcap")
     with pytest.raises(IttError, match="deterministic='yes' is not a bool"):
         SessionConfig.from_metadata({**logged, "deterministic": "yes"}, "x.mcap")
+
+
+def test_the_days_temperature_sets_the_air_at_the_courses_altitude() -> None:
+    """`air_temperature_c` (the node's parameter, replay's `--air-temperature-c`): the
+    air of ISA pressure at the course's mean altitude at that temperature; not given
+    (NaN), the density asked for. Both given, or a temperature no race is ridden in, is
+    refused by name."""
+    hot = SessionConfig(air_temperature_c=35.0)
+    assert hot.conditions(600.0).air_density_kgpm3 == pytest.approx(
+        float(air_density_kgpm3(600.0, 35.0)))
+    assert hot.conditions(600.0).air_density_kgpm3 < SessionConfig().conditions(600.0) \
+        .air_density_kgpm3 == 1.23
+    with pytest.raises(IttError, match=r"air_density_kgpm3 1\.1 and air_temperature_c 35\.0"):
+        SessionConfig(air_temperature_c=35.0, air_density_kgpm3=1.1)
+    with pytest.raises(RiderError, match=r"air temperature 80\.0 C"):
+        SessionConfig(air_temperature_c=80.0).conditions(0.0)
+    # Written into a log and read back: "nan" is "not given" again.
+    logged = {k: str(v) for k, v in dataclasses.asdict(SessionConfig()).items()}
+    assert logged["air_temperature_c"] == "nan"
+    assert SessionConfig.from_metadata(logged, "x.mcap") == SessionConfig()

@@ -20,7 +20,7 @@ from itt_planner.live.advice import Advice
 from itt_planner.live.engine import ON_PLAN, EngineSettings, PacingEngine
 from itt_planner.logs.ridelog import RawRecord, RideLogReader
 from itt_planner.logs.ridelog_writer import RideLogWriter, RideMetadata
-from itt_planner.model.conditions import Conditions
+from itt_planner.model.conditions import Conditions, air_density_kgpm3
 from itt_planner.model.rider import PRESETS
 from itt_planner.ocp.cache import load_or_solve
 from itt_planner.ocp.course_settings import OcpSettings
@@ -334,3 +334,32 @@ def test_a_log_of_other_topics_is_an_error_and_remap_reads_it(setup: dict[str, A
         replay_mod.parse_remap(["fix:=/itt/gps/fix"])
     with pytest.raises(RideLogError, match="--remap to /itt/gps: not a topic the engine reads"):
         replay(short, session_for(setup), settings=ReplaySettings(remap=(("/fix", "/itt/gps"),)))
+
+
+def test_cli_replay_the_days_air(setup: dict[str, Any], tmp_path: Path) -> None:
+    """A ride log that says the day's air temperature (`import`: the median of the
+    records'): the replay in the paper's air says what the day's air was and how to plan
+    in it; `--air-temperature-c` plans in it, at the course's altitude."""
+    course = tmp_path / "hairpin.course.npz"
+    setup["course"].save(course)
+    plan = setup["plan"]
+    log = tmp_path / "hot.mcap"
+    with RideLogWriter(log, metadata=RideMetadata(source="simulated", air_temperature_c=35.0)
+                       ) as w:
+        for sample in sensor_samples(setup["course"], plan.t_s, plan.s_m, plan.n_m, plan.v_mps,
+                                     plan.power_w, np.random.default_rng(3), t0_s=T0):
+            w.write_sample(sample)
+    args = ["replay", str(log), "--course", str(course), "--rider", "typical", "--model", "1d",
+            "--replan-period", "60", "--horizon-m", str(HORIZON_M),
+            "--cache-dir", str(tmp_path / "cache"), "--json"]
+    paper = json.loads(CliRunner().invoke(app, args).stdout)
+    [note] = [w for w in paper["warnings"] if "air" in w]
+    assert "records give 35.0 C" in note and "--air-temperature-c 35.0" in note
+    hot = json.loads(CliRunner().invoke(app, [*args, "--air-temperature-c", "35"]).stdout)
+    assert not [w for w in hot["warnings"] if "air" in w]
+    assert hot["conditions"]["air_temperature_c"] == 35.0
+    assert hot["conditions"]["air_density_kgpm3"] == pytest.approx(
+        float(air_density_kgpm3(setup["course"].mean_altitude_m, 35.0)))
+    both = CliRunner().invoke(app, [*args, "--air-temperature-c", "35",
+                                    "--air-density-kgpm3", "1.1"])
+    assert both.exit_code == 1 and "give one" in json.loads(both.stdout)["error"]
