@@ -71,6 +71,9 @@ def _human_info(info: dict[str, Any]) -> str:
         lines.append(f"altitude: {e['source']} (asked: {e['requested']}); " + ", ".join(
             f"{k} {v['min_grade'] * 100:.1f}..{v['max_grade'] * 100:.1f} %"
             for k, v in e["profiles"].items()))
+    if build.get("air_temperature_c") is not None:
+        lines.append(f"air: {build['air_temperature_c']:.1f} C recorded (the median of the "
+                     "ride's records): plan and replay --air-temperature-c plan in it")
     lines += [f"WARNING: {w}" for w in info.get("warnings", [])]
     lines += [
         f"  {c['apex_s_m'] / 1000:7.3f} km  {c['direction']:5s} {c['angle_deg']:6.1f} deg  "

@@ -149,8 +149,9 @@ def plan_cli(
         if air_temperature_c is not None:
             result["conditions"]["air_temperature_c"] = air_temperature_c
         day_air_given = air_density_kgpm3 is not None or air_temperature_c is not None
-        if not day_air_given and (note := own_air_note(built.mean_altitude_m,
-                                                       conditions.air_density_kgpm3)):
+        if not day_air_given and (note := own_air_note(
+                built.mean_altitude_m, conditions.air_density_kgpm3,
+                built.recorded_air_temperature_c)):
             result["warnings"].append(note)
         if not result["success"] and allow_unconverged:
             result["allowed_unconverged"] = True

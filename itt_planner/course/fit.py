@@ -36,6 +36,7 @@ The smoothing splines, and the altitude's fit with them, are in `course.smoothin
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Literal, cast
@@ -161,7 +162,8 @@ def fit_course(rec: Recording, settings: FitSettings = FitSettings(),
     sport = [f"the file is a {rec.sport!r} activity, not a ride: its track is read as a course"
              ] if rec.other_sport else []
     build = {"trim": trim_report, "elevation": elevation, "road_width": width_report, "gaps":
-             gap_rows, "sport": rec.sport,
+             gap_rows, "sport": rec.sport, "air_temperature_c": _json_float(
+                 rec.air_temperature_c(track.index)),
              "warnings": trim.warnings() + list(elevation["warnings"]) + gap_warnings + sport}
     return Course.from_centerline(
         rec.path.name.split(".")[0], x, y, z, origin=track.origin,
@@ -169,6 +171,11 @@ def fit_course(rec: Recording, settings: FitSettings = FitSettings(),
         width_left_m=width / 2, width_right_m=width / 2,
         source=str(rec.path), source_sha256=rec.sha256, build=build,
     ).laps(options.laps)
+
+
+def _json_float(value: float) -> float | None:
+    """`value`, or None for NaN (a course's build is JSON)."""
+    return value if math.isfinite(value) else None
 
 
 def _road_width(s: np.ndarray, options: CourseOptions) -> tuple[np.ndarray, dict[str, Any]]:

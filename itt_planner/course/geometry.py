@@ -157,6 +157,13 @@ class Course:
         """Mean altitude above sea level (`z_m` against `origin`: see `to_geodetic`)."""
         return self.origin.alt_m + float(np.mean(self.z_m) - self.z_m[0])
 
+    @property
+    def recorded_air_temperature_c(self) -> float:
+        """The median air temperature of the ride the course was built from (NaN when
+        it recorded none, or the course is not a ride's)."""
+        value = self.build.get("air_temperature_c")
+        return math.nan if value is None else float(value)
+
     def at(self, field: str, s_m: float | np.ndarray) -> np.ndarray:
         """Linear interpolation of one of the arrays (by attribute name) at `s_m`."""
         return cast(np.ndarray, np.interp(s_m, self.s_m, getattr(self, field)))

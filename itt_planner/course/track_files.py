@@ -18,6 +18,7 @@ import csv
 import gzip
 import hashlib
 import io
+import math
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -72,6 +73,16 @@ class Recording:
 
     def __len__(self) -> int:
         return len(self.lat_deg)
+
+    def air_temperature_c(self, index: np.ndarray | None = None) -> float:
+        """The median of the air temperatures recorded (at `index`, else everywhere), NaN
+        when there are none: the day's air, whatever the sun did to the head unit for a
+        while."""
+        if self.temperature_c is None:
+            return math.nan
+        values = self.temperature_c if index is None else self.temperature_c[index]
+        values = values[np.isfinite(values)]
+        return float(np.median(values)) if len(values) else math.nan
 
     @property
     def other_sport(self) -> bool:

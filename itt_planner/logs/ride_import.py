@@ -134,7 +134,7 @@ def import_ride(source: str | Path, output: str | Path, *, rider: str = "",
         raise RideLogError(f"{source}: no record has a timestamp")
     times = rec.time_s[order]
 
-    temperature_c = _median_temperature_c(rec, order)
+    temperature_c = rec.air_temperature_c(order)
     metadata = RideMetadata(source=source.name, sha256=rec.sha256, device=rec.device,
                             rider=rider, air_temperature_c=temperature_c)
     with RideLogWriter(output, metadata=metadata, namespace=namespace) as writer:
@@ -159,16 +159,6 @@ def import_ride(source: str | Path, output: str | Path, *, rider: str = "",
                   "are not a cyclist's, and a replay's advice for them means nothing")
                   ] if rec.other_sport else [],
     )
-
-
-def _median_temperature_c(rec: Recording, order: np.ndarray) -> float:
-    """The median of the air temperatures recorded in the records `order` (NaN when
-    there are none): the day's air, whatever the sun did to the head unit for a while."""
-    if rec.temperature_c is None:
-        return math.nan
-    values = rec.temperature_c[order]
-    values = values[np.isfinite(values)]
-    return float(np.median(values)) if len(values) else math.nan
 
 
 def _write_record(writer: RideLogWriter, rec: Recording, i: int) -> None:

@@ -234,12 +234,15 @@ class RideSession:
     def setup_warnings(self, recorded_air_temperature_c: float = math.nan) -> list[str]:
         """What the session's set-up assumes that the course says otherwise (known at
         start: the node logs them then): the course's own air, at the temperature a
-        replayed ride's records give (`recorded_air_temperature_c`), else ISA's 15 C,
-        unless the config gave the day's temperature."""
+        replayed ride's records give (`recorded_air_temperature_c`), else the ride's the
+        course was built from, else ISA's 15 C, unless the config gave the day's."""
         if math.isfinite(self.config.air_temperature_c):
             return []
-        note = own_air_note(self.engine.course.mean_altitude_m,
-                            self.conditions.air_density_kgpm3, recorded_air_temperature_c)
+        course = self.engine.course
+        if not math.isfinite(recorded_air_temperature_c):
+            recorded_air_temperature_c = course.recorded_air_temperature_c
+        note = own_air_note(course.mean_altitude_m, self.conditions.air_density_kgpm3,
+                            recorded_air_temperature_c)
         return [note] if note else []
 
     def warnings(self, recorded_air_temperature_c: float = math.nan) -> list[str]:

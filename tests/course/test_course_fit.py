@@ -161,3 +161,21 @@ def test_a_gps_course_maps_back_to_its_own_altitude(real_course: Callable[[str],
     xb, yb, zb = course.from_geodetic(lat, lon, alt)
     np.testing.assert_allclose(np.column_stack([xb, yb, zb]), np.column_stack([x, y, z]),
                                atol=0.01)
+
+
+def test_a_rides_course_keeps_the_days_air_temperature(
+        real_course: Callable[[str], Course], data_file: Callable[[str], Path],
+        tmp_path: Path) -> None:
+    # The median of the records' temperatures (the Edge 810 writes one per record), kept
+    # in the build and in a saved course: the plan's warning about its air gives it.
+    course = real_course("rides/edge810_vector_stjohns_2013.fit")
+    rec = read_recording(data_file("rides/edge810_vector_stjohns_2013.fit"))
+    assert rec.temperature_c is not None
+    assert course.recorded_air_temperature_c == pytest.approx(
+        float(np.nanmedian(rec.temperature_c)))
+    assert 15.0 <= course.recorded_air_temperature_c <= 25.0
+    saved = Course.load(course.save(tmp_path / "sj"))
+    assert saved.recorded_air_temperature_c == course.recorded_air_temperature_c
+    # A track without temperatures has none.
+    rec = dataclasses.replace(rec, temperature_c=None)
+    assert math.isnan(fit_course(rec).recorded_air_temperature_c)
