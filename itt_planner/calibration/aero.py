@@ -23,7 +23,9 @@ gap. The uncertainty is a bootstrap over stretches (the errors within one stretc
 correlated: wind, altimeter drift). crr is weakly identified without speed variety; a
 crr outside a plausible band is fixed to its prior and said so; a mass at the edge of
 its range is a refusal (pass it). A CdA no physical rider has is a refusal: the speed
-cannot come from that power (a virtual ride's simulated speed, a wrong mass, a broken meter).
+cannot come from that power (a virtual ride's simulated speed, a wrong mass, a broken meter;
+too much drag that a free crr explains as a rolling resistance no road has: an unpaved
+ride, and the refusal says so).
 """
 
 from __future__ import annotations
@@ -241,11 +243,11 @@ def fit_aero(rides: list[RideSeries], st: AeroSettings) -> AeroFit:
         mass, crr, cda, wind = prob.unpack(x)
     for value in cda:
         if not PHYSICAL_CDA_M2[0] <= value <= PHYSICAL_CDA_M2[1]:
-            raise CalibrationError(
-                f"{names}: speed and power disagree with any physical rider: the best power "
-                f"balance needs CdA {value:.3f} m^2 (crr {crr:.4f}, mass {mass:.0f} kg), outside "
-                f"{PHYSICAL_CDA_M2[0]}-{PHYSICAL_CDA_M2[1]} m^2. The speed is probably simulated "
-                "(a virtual ride), or the mass or the power meter is wrong")
+            why = (f"{names}: speed and power disagree with any physical rider: the best power "
+                   f"balance needs CdA {value:.3f} m^2 (crr {crr:.4f}, mass {mass:.0f} kg), "
+                   f"outside {PHYSICAL_CDA_M2[0]}-{PHYSICAL_CDA_M2[1]} m^2")
+            raise CalibrationError(why + (_rolling_cause(des, st, setups, mass0)
+                                          if value > PHYSICAL_CDA_M2[1] else _OTHER_CAUSES))
     if rmse_free < st.simulated_rmse_m and not st.allow_simulated:
         raise CalibrationError(
             f"{names}: the speed is simulated, not measured (or the power is): power, speed and "
@@ -274,6 +276,31 @@ def fit_aero(rides: list[RideSeries], st: AeroSettings) -> AeroFit:
                                          cda[prob.setup_of_interval], wind),
         setup_cda_m2=tuple(float(c) for c in cda),
         setup_cda_std_m2=tuple(float(c) for c in cda_sd))
+
+
+#: Why a CdA no rider has, when rolling resistance does not explain it.
+_OTHER_CAUSES = (". The speed is probably simulated (a virtual ride), or the mass or the "
+                 "power meter is wrong")
+
+
+def _rolling_cause(des: Design, st: AeroSettings, setups: tuple[int, ...], mass_kg: float
+                   ) -> str:
+    """Why a ride needs more drag than any rider has: with crr free at `mass_kg`, a
+    rolling resistance no road tyre on tarmac has and a rider's CdA (an unpaved ride: a
+    mountain-bike race lap's best balance with crr at 0.004 needs CdA 0.63; at 80 kg
+    with crr free, crr 0.018 and CdA 0.39); else `_OTHER_CAUSES`."""
+    free = _Problem(des, ("crr", "cda"), {"mass": mass_kg}, st.fit_wind, st.mass_range_kg,
+                    setups)
+    _, crr, cda, _ = free.unpack(free.solve(free.start(mass_kg, st.crr_prior)))
+    low, high = PHYSICAL_CDA_M2
+    if crr <= st.crr_band[1] or not all(low <= value <= high for value in cda):
+        return _OTHER_CAUSES
+    return (f". With crr free at {mass_kg:.0f} kg it needs crr {crr:.3f} and CdA "
+            f"{', '.join(f'{value:.3f}' for value in cda)} m^2: a rolling resistance no road "
+            f"tyre on tarmac has ({st.crr_band[0]}-{st.crr_band[1]}): an unpaved surface "
+            "(gravel, dirt, a mountain-bike trail), soft or knobbly tyres, a rubbing brake; "
+            "or the mass (--mass-kg) or the power meter is wrong. The planner's rider rides "
+            "a road: calibrate CdA on road rides")
 
 
 def fit_day_wind(ride: RideSeries, mass_kg: float, crr: float, cda_m2: float,

@@ -256,3 +256,23 @@ def test_cda_per_setup(synthetic: Synthetic, tmp_path: Path) -> None:
     assert load_rider(written[1]).drag_area_m2 == pytest.approx(up, rel=1e-5)
     with pytest.raises(CalibrationError, match="one --setup per ride"):
         calibrate([rec, upright], CalibrationOptions(setups=("tt",)))
+
+
+@pytest.mark.parametrize(("crr", "mass_kg", "said"),
+                         [(0.06, TRUTH.mass_kg, "crr 0.060 and CdA 0.29"),
+                          (0.05, None, "at 80 kg it needs crr 0.04")])
+def test_an_unpaved_ride_is_refused_for_its_rolling_resistance(
+        synthetic: Synthetic, crr: float, mass_kg: float | None, said: str) -> None:
+    """The virtual rider's ride with the power a mountain-bike trail's crr asks for (two real
+    MTB rides' best balance at crr 0.004 needed CdA 0.63, and the refusal blamed a virtual
+    ride): refused, saying that with crr free (at the given mass, else 80 kg) the balance
+    needs a rolling resistance no road has and a rider's CdA. (At crr 0.02 the CdA is 0.40
+    and nothing is refused: a heavier rider on tarmac looks the same, see README.)"""
+    _, rec = synthetic
+    assert rec.power_w is not None and rec.speed_mps is not None
+    rolling_w = (crr - TRUTH.crr) * TRUTH.mass_kg * 9.81 * np.nan_to_num(rec.speed_mps)
+    trail = dataclasses.replace(rec, power_w=rec.power_w + rolling_w)
+    with pytest.raises(CalibrationError, match="disagree with any physical rider") as refusal:
+        fit_aero(load_rides([trail], None), AeroSettings(mass_kg=mass_kg))
+    message = str(refusal.value)
+    assert "no road tyre on tarmac" in message and said in message, message
