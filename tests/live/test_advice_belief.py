@@ -154,6 +154,16 @@ CLIMB_COURSE = build_course({
                  {"type": "straight", "length_m": 800, "grade_pct": 8}]})
 
 
+def _monitor_at_the_start() -> tuple[WPrimeBalance, StateEstimator, CpMonitor]:
+    """A W' balance, an estimator placed at the start of the climb course, and a CP
+    monitor of the balance, for power fed by hand."""
+    balance = WPrimeBalance(RIDER, EstimatorSettings().power_hold_s)
+    est = StateEstimator(CLIMB_COURSE, balance)
+    lat, lon, alt = (float(a) for a in CLIMB_COURSE.to_geodetic(*CLIMB_COURSE.enu_at(0.0, 0.0)))
+    est.on_gps(GpsFix(0.0, lat, lon, alt))
+    return balance, est, CpMonitor(RIDER, balance)
+
+
 def test_climb_starts_at_the_foot_of_the_climb() -> None:
     feet = climb_starts(CLIMB_COURSE)
     assert len(feet) == 1 and 520.0 <= feet[0] <= 640.0
@@ -198,11 +208,7 @@ def test_w_prime_shown_is_never_below_zero_without_a_refit(blocks: list[tuple[fl
     >= 0, and after every observation the balance as integrated is no further below zero
     than the up margin unless a refit was made at that very observation, or the power
     held proves no higher CP (`CpMonitor.holding`, reported)."""
-    balance = WPrimeBalance(RIDER, EstimatorSettings().power_hold_s)
-    est = StateEstimator(CLIMB_COURSE, balance)
-    lat, lon, alt = (float(a) for a in CLIMB_COURSE.to_geodetic(*CLIMB_COURSE.enu_at(0.0, 0.0)))
-    est.on_gps(GpsFix(0.0, lat, lon, alt))
-    monitor = CpMonitor(RIDER, balance)
+    balance, est, monitor = _monitor_at_the_start()
     margin = monitor.settings.up_margin * RIDER.w_prime_j
     t = 0
     for power, seconds in blocks:
@@ -228,11 +234,7 @@ def test_a_surge_on_a_slowly_recovered_balance_is_held_not_refitted() -> None:
     0.4 W' in a 30 s surge: the balance goes below zero, but no duration's power proves
     a higher CP (MMP(T) - W'/T; the Sauerland ride's case): no refit, the rider is
     'holding', counted once and reported."""
-    balance = WPrimeBalance(RIDER, EstimatorSettings().power_hold_s)
-    est = StateEstimator(CLIMB_COURSE, balance)
-    lat, lon, alt = (float(a) for a in CLIMB_COURSE.to_geodetic(*CLIMB_COURSE.enu_at(0.0, 0.0)))
-    est.on_gps(GpsFix(0.0, lat, lon, alt))
-    monitor = CpMonitor(RIDER, balance)
+    balance, est, monitor = _monitor_at_the_start()
     cp, w_prime = RIDER.critical_power_w, RIDER.w_prime_j
     held_at = []
     for t in range(1, 751):
@@ -259,11 +261,7 @@ def test_a_down_refit_waits_for_no_surge(surge_after_s: int | None) -> None:
     Out of W' (the power stays there): CP is refitted down once `confirm_s` has passed.
     Easing off by choice (the Zwift Bologna rider was back at 331 W, 1.14 of its 290 W,
     4 s after 30 s at 272 W against 308 W): the surge cancels it, counted."""
-    balance = WPrimeBalance(RIDER, EstimatorSettings().power_hold_s)
-    est = StateEstimator(CLIMB_COURSE, balance)
-    lat, lon, alt = (float(a) for a in CLIMB_COURSE.to_geodetic(*CLIMB_COURSE.enu_at(0.0, 0.0)))
-    est.on_gps(GpsFix(0.0, lat, lon, alt))
-    monitor = CpMonitor(RIDER, balance)
+    balance, est, monitor = _monitor_at_the_start()
     st, cp = monitor.settings, RIDER.critical_power_w
     held = (0.91, 0.97, 1.01)  # x CP, in turn: mean 0.963
     found = 60 + int(st.window_s)  # the window's conditions hold by then
