@@ -13,6 +13,7 @@ which the power-duration curve takes (a CP test is often ridden indoors).
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import cast
@@ -121,13 +122,6 @@ def _fit_messages(path: Path, message: str) -> list[dict[str, object]]:
     return fit_messages(track_bytes(path), (message,))[message]
 
 
-def record_temperature_c(rec: Recording) -> float | None:
-    """Median temperature of a ride's records (the head unit's sensor: FIT `temperature`,
-    GPX `atemp`), or None when it has none."""
-    temps = rec.temperature_c
-    return None if temps is None or not np.isfinite(temps).any() else float(np.nanmedian(temps))
-
-
 def record_setup(path: Path) -> str | None:
     """The bike profile a FIT file names (`bike_profile.name`, e.g. "TT bike"), when it
     names exactly one; None otherwise (most files name none)."""
@@ -216,8 +210,9 @@ def prepare_ride(rec: Recording, *, temperature_c: float | None = None,
     step = np.where(same, 0.5 * (speed[1:] + speed[:-1]) * dt, 0.0)
     dist = np.concatenate([[0.0], np.cumsum(step)])
     if temperature_c is None:
-        temperature_c = record_temperature_c(rec)
-    temp = DEFAULT_TEMPERATURE_C if temperature_c is None else float(temperature_c)
+        recorded = rec.air_temperature_c()
+        temperature_c = recorded if math.isfinite(recorded) else DEFAULT_TEMPERATURE_C
+    temp = float(temperature_c)
     series = RideSeries(
         source=where, t_s=t, v_mps=speed, power_w=power, ele_m=ele, dist_m=dist,
         rho_kgpm3=air_density_kgpm3(ele, temp), block=block, lat_deg=lat, lon_deg=lon,

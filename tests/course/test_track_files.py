@@ -4,6 +4,7 @@ same as Strava's bulk export writes them (gzipped; XML after leading spaces)."""
 from __future__ import annotations
 
 import gzip
+import math
 import re
 from collections.abc import Callable
 from datetime import UTC, datetime
@@ -13,7 +14,6 @@ import numpy as np
 import pytest
 
 from itt_planner.calibration import CalibrationError, calibrate
-from itt_planner.calibration.ride_data import record_temperature_c
 from itt_planner.course.loader import load_course
 from itt_planner.course.track_files import file_sha256, read_recording, track_format
 from itt_planner.errors import CourseError
@@ -81,7 +81,7 @@ def test_gpx_extensions_power_speed_cadence_temperature(tmp_path: Path) -> None:
     np.testing.assert_array_equal(rec.power_w, [310, np.nan, 250, np.nan])
     np.testing.assert_array_equal(rec.speed_mps, [11.5, 12.0, np.nan, np.nan])
     np.testing.assert_array_equal(rec.cadence_rpm, [90, 92, np.nan, np.nan])
-    assert record_temperature_c(rec) == 22.0
+    assert rec.air_temperature_c() == 22.0
 
 
 def test_csv_ride_with_iso_times_and_sensor_columns(tmp_path: Path) -> None:
@@ -99,7 +99,7 @@ def test_csv_ride_with_iso_times_and_sensor_columns(tmp_path: Path) -> None:
     np.testing.assert_allclose(rec.speed_mps, [10.0, 10.25, 10.5])
     np.testing.assert_array_equal(rec.power_w, [250, np.nan, 260])
     assert rec.cadence_rpm is not None and rec.cadence_rpm[2] == 92
-    assert record_temperature_c(rec) == 21.0
+    assert rec.air_temperature_c() == 21.0
     csv.write_text("time,lat,lon\n2026-01-01T10:00:00Z,45,11\nyesterday,45,11\n")
     with pytest.raises(CourseError, match=r"line 3: time 'yesterday' is not a number or an "
                                           "ISO 8601 time"):
@@ -187,7 +187,7 @@ def test_a_gzipped_fit_is_the_fit(tmp_path: Path, data_file: Callable[[str], Pat
                  "temperature_c"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     assert a.device == b.device and b.sha256 == file_sha256(packed) != a.sha256
-    assert record_temperature_c(b) is not None  # the head unit's, for the air density
+    assert math.isfinite(b.air_temperature_c())  # the head unit's, for the air density
 
 
 def test_a_gzipped_route_loads_as_a_course(tmp_path: Path) -> None:
