@@ -71,7 +71,7 @@ class SessionConfig:
             the session warns when the course's own differs by over 3 %).
         air_temperature_c: the day's air temperature (C); NaN (the default): not
             given. Given, the air density is the course's own: ISA pressure at its mean
-            altitude at this temperature (`model.conditions.air_density_kgpm3`), and
+            altitude at this temperature (`model.conditions.day_air_density_kgpm3`), and
             `air_density_kgpm3` must be left at its default.
             A plan given by file (`plan`) brings the conditions it was solved in; these
             must then be left at their defaults or agree with it.
