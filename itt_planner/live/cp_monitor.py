@@ -20,11 +20,10 @@ CP is wrong the balance drifts, and what the rider does reveals it, in two ways:
   The surge test allows `surge_margin` above CP: power-meter noise around a rider at a
   true CP 5 % below the belief put the 90th percentile at or above the belief (the
   Riderman course, simulated: the refit came at 16.7 km of 17.2, its evidence was there
-  at 5.0 km). Such a
-  refit is only pending: it is adopted after `confirm_s` more in which no `surge_mean_s`
-  mean of the power reached CP, and cancelled by one that did (the Zwift Bologna rider
-  at 272 W against 308 W advised for 30 s, with no surge in them, was back at 331 W 4 s
-  later).
+  at 5.0 km). Such a refit is only pending: it is adopted after `confirm_s` more in
+  which no `surge_mean_s` mean of the power reached CP, and cancelled by one that did
+  (the Zwift Bologna rider at 272 W against 308 W advised for 30 s, with no surge in
+  them, was back at 331 W 4 s later).
   A rider who was NOT following (a steady ride below CP against higher advice, a hot
   start that ignores it) makes a choice, not a limit: no refit. (On a
   real ride the old detector, without the following condition, refitted 290 -> 263 W
