@@ -301,6 +301,12 @@ class CpMonitor:
         log.warning("engine: %s", refit.message())
         return refit
 
+    def counts(self) -> dict[str, int]:
+        """The engine's counters of what was not refitted: `cp_up_held` (the balance below
+        zero with no higher CP proven) and `cp_down_cancelled` (a surge before the
+        confirmation)."""
+        return {"cp_up_held": self.up_held, "cp_down_cancelled": self.down_cancelled}
+
     def diagnostic(self, stamp_s: float) -> Diagnostic:
         """`itt_planner/rider_model`: the CP in use, the refits so far and the last one's
         evidence (WARN once there was a refit, or while `holding`)."""

@@ -214,10 +214,7 @@ class PacingEngine:
     def counters(self) -> dict[str, int]:
         """Estimator rejections and engine events (solves, failures, fallbacks, refits)."""
         with self._lock:
-            # cp_up_held: the balance below zero with no higher CP proven; cp_down_cancelled:
-            # a down-refit a surge cancelled before its confirmation (`cp_monitor`).
-            return {**self._estimator.counters, **self._stats, "cp_up_held": self._cp.up_held,
-                    "cp_down_cancelled": self._cp.down_cancelled}
+            return {**self._estimator.counters, **self._stats, **self._cp.counts()}
 
     @property
     def counts(self) -> EngineCounts:
