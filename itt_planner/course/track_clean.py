@@ -72,6 +72,8 @@ class Track:
         moving_speed0: fixes kept although the device speed read ~0 (the GPS moved).
         repeated: records dropped as a copy of an earlier one (the same time and place: a
             device that wrote a stretch twice, files joined with an overlap).
+        loop_overrun_m: distance cut past the start line of a closed loop (a lap file
+            that runs on past the line; `close_loop`).
         altitude_share: the share of the fixes with a recorded altitude (the others are
             interpolated; none at all gives a flat `z_m`, which `course_elevation` reports).
         stamped: the fixes have times (a GPS log), not only positions (a route).
@@ -85,6 +87,7 @@ class Track:
     index: np.ndarray
     moving_speed0: int = 0
     repeated: int = 0
+    loop_overrun_m: float = 0.0
     altitude_share: float = 1.0
     stamped: bool = True
 
@@ -100,6 +103,9 @@ class Track:
         if self.repeated:
             notes.append(f"{self.repeated} records dropped: copies of earlier ones (the same "
                          "time and place)")
+        if self.loop_overrun_m:
+            notes.append(f"the last {self.loop_overrun_m:.0f} m cut: they run on past the "
+                         "start line of a closed loop (a lap file's overrun)")
         return notes
 
     def take(self, sel: np.ndarray | slice) -> Track:
@@ -205,7 +211,7 @@ def clean_fixes(rec: Recording, settings: CleanSettings = CleanSettings()) -> Tr
     if len(x) < 3:
         raise CourseError(f"{where}: fewer than 3 GPS points left after removing jumps")
     return Track(x, y, ele, origin, False, index, moving_speed0, int(repeated.sum()),
-                 float(good.mean()), stamped=t is not None)
+                 altitude_share=float(good.mean()), stamped=t is not None)
 
 
 def _repeats(lat: np.ndarray, lon: np.ndarray, time_s: np.ndarray | None) -> np.ndarray:
@@ -280,7 +286,8 @@ def close_loop(track: Track, settings: CleanSettings = CleanSettings()) -> Track
                 np.diff(cand) != -1) else cand
             best = int(tail[run[np.argmin(dist[run])]])
             closed = True
-            track = track.take(slice(0, best + 1))
+            track = replace(track.take(slice(0, best + 1)),
+                            loop_overrun_m=float(step[best:].sum()))
             x, y = track.x_m, track.y_m
         elif closed and not _arrives_like_start(x, y, len(x) - 1, ahead, settings):
             # Out along a road and back along it to the start (a ride from home): joining
