@@ -74,7 +74,12 @@ Design choices:
   18 W. The soft terminal W' target is not part of the check: one capped iterate was
   1.0 s faster than the optimum by ending its window 2.8 kJ below that target (W' still
   >= 0; the next replan, from the measured W', prices the deficit again).
-  Capped iterates that are not yet feasible (open continuity gaps) are failures.
+  Capped iterates that are not yet feasible (open continuity gaps) are failures. A
+  converged solution must pass the same check: on the slacks, IPOPT can converge to a
+  window that asks 1.8x the grip where the measured start used 1.2 (a perturbed start
+  above a hairpin of tests/ocp/test_horizon.py's descent, once attempts could run to
+  150 iterations), which no rider can follow (`BEYOND_LIMITS`: the next attempt is
+  tried).
 - Rescue by continuation in the E9 switch, after both attempts failed (`horizon_rescue`).
   Why they fail: a rider who pedals near critical power rides right on the kink of E9
   (W' drains at the full rate above CP, recovers at `(1 - E_n)` of it below), which the
@@ -125,6 +130,7 @@ from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
 from itt_planner.ocp.horizon_nlp import HorizonNlp
 from itt_planner.ocp.horizon_settings import (
+    BEYOND_LIMITS,
     SUBOPTIMAL_FEASIBLE,
     UNRESOLVED,
     HorizonSettings,
@@ -269,13 +275,10 @@ class HorizonPlanner:
                 log.warning("horizon solve (%s) raised: %s", kind, res.raw_status)
             iterations += res.iterations
             statuses.append(res.raw_status)
-            success, outcome = res.converged, res.status
+            outcome = res.status
+            success, verdict = _usable(nlp, res, p, lbw, ubw)
+            statuses.extend(verdict)
             if success:
-                break
-            if (res.iterations >= 1 and res.status is PlanStatus.CAPPED
-                    and nlp.feasible(res.w, p, lbw, ubw)):
-                success = True
-                statuses.append(SUBOPTIMAL_FEASIBLE)
                 break
         if not success and nlp.rescue is not None:
             rescued, status, its = nlp.rescue.solve(starts, p, lbw, ubw)
@@ -339,3 +342,16 @@ class HorizonPlanner:
         self._previous = None
         self._previous_mult = None
         self._failures = 0
+
+
+def _usable(nlp: HorizonNlp, res: SolveResult, p: np.ndarray, lbw: np.ndarray,
+            ubw: np.ndarray) -> tuple[bool, list[str]]:
+    """Whether an attempt's result is advice (module docstring), and the status it adds:
+    converged within the limits `HorizonNlp.feasible` checks; converged beyond them
+    (`BEYOND_LIMITS`, not usable); stopped by the budget and feasible
+    (`SUBOPTIMAL_FEASIBLE`)."""
+    if res.converged:
+        return (True, []) if nlp.feasible(res.w, p, lbw, ubw) else (False, [BEYOND_LIMITS])
+    if res.iterations >= 1 and res.status is PlanStatus.CAPPED and nlp.feasible(res.w, p, lbw, ubw):
+        return True, [SUBOPTIMAL_FEASIBLE]
+    return False, []

@@ -73,7 +73,8 @@ class HorizonRescue:
         """(a usable result or None, status, iterations) after the exact attempts failed.
 
         The smooth NLP from the first of the attempts' `starts` that converges; then the
-        exact NLP from its solution (the polish). If the polish is not usable, the smooth
+        exact NLP from its solution (the polish). If the polish is not usable (converged
+        beyond the limits `feasible` checks included), the smooth
         solution itself with W' recomputed by the exact model (`exact_w_prime`): the
         smoothing only changes E9, so the other states obey the exact dynamics as they
         are, and the exact W' is never below the smooth one (the softplus over-estimates
@@ -100,7 +101,7 @@ class HorizonRescue:
         _log_error("polish", polish)
         iterations += polish.iterations
         bare = dataclasses.replace(polish, lam_x=None, lam_g=None)
-        if polish.converged:
+        if polish.converged and self._feasible(polish.w, p, lbw, ubw):
             return bare, polish.raw_status, iterations
         if (polish.iterations >= 1 and polish.status is PlanStatus.CAPPED
                 and self._feasible(polish.w, p, lbw, ubw)):

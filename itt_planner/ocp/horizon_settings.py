@@ -20,6 +20,11 @@ SMOOTHED_FEASIBLE = "Smoothed_Feasible"
 #: Status added when a solution fails `HorizonNlp.resolved` (an integration artefact:
 #: success=False, the last good advice stays).
 UNRESOLVED = "Unresolved_Dynamics"
+#: Status added when a converged solution rides its path-constraint slacks beyond grip
+#: (C16) or the pedalling gate (C15), more than the measured start already did
+#: (`HorizonNlp.feasible`): the next attempt is tried, and if none is usable the last
+#: good advice stays.
+BEYOND_LIMITS = "Beyond_Limits"
 
 
 @dataclass(frozen=True)
@@ -56,7 +61,11 @@ class HorizonSettings:
             the artefact (2.5 -> 27 m/s in 10 m, "converged"): advice of 0 W that
             stalled the virtual rider. Two substeps everywhere cost 26 % of the median
             replan on verona-like and lost 3 of 50 replans of test_horizon's technical
-            descent (bench/RESULTS.md, 2026-12-04).
+            descent (bench/RESULTS.md, 2026-12-04). 1.0 since 2026-12-05: a slow rider
+            (3.5-5 m/s) up a switchback circuit's climbs had 18-30 m intervals at 1.1-2.0,
+            and their solutions failed the check below (`Unresolved_Dynamics`): 47 of 73
+            fallbacks; at 1.0, 8 fallbacks of 1,656 advice (10 % of St John's windows
+            get two substeps instead of 3 %).
         resolve_tol_mps: a solution is usable only if every interval, integrated again
             with four times the substeps, ends within this (plus 5 % of the speed) of
             its next node's speed (`HorizonNlp.resolved`): the artefact check.
@@ -66,7 +75,13 @@ class HorizonSettings:
             rider (m per m), so the first intervals (the advice now) are fine.
         slack_weight: penalty per unit of path-constraint slack (s).
         v_weight: terminal speed penalty (s per (m/s)^2).
-        max_iter, max_wall_time_s: hard budget of one replan.
+        max_iter, max_wall_time_s: budget of each attempt (warm, retry, the rescue's
+            smooth solve) and of the whole replan (shared as `warm_share`,
+            `rescue_share` say; a deterministic replay has no wall-time cap). 150 since
+            2026-12-05: at 60, replans that needed 61-150 iterations (a rider far off
+            the plan through switchbacks: median 77, re-solved uncapped) failed all
+            three attempts; on a switchback circuit 166 of 1,656 advice were fallbacks,
+            9 at 150, and the Zwift Bologna ride 5 -> 1 (bench/RESULTS.md).
         tol: IPOPT tolerance (a replan needs less accuracy than the plan). 1e-4 since
             the NLP is unscaled: with 1e-3 the closed loop on the technical test course
             finished 1.3 % behind the optimum (tests/sim/test_simulate.py), at the same
@@ -116,14 +131,14 @@ class HorizonSettings:
     n_intervals: int = 60
     substeps: int = 1
     stiff_substeps: int = 2
-    stiff_ratio: float = 2.0
+    stiff_ratio: float = 1.0
     resolve_tol_mps: float = 0.3
     h_min_m: float = 2.5
     h_max_m: float = 30.0
     near_grade: float = 0.1
     slack_weight: float = 100.0
     v_weight: float = 1.0
-    max_iter: int = 60
+    max_iter: int = 150
     max_wall_time_s: float = 0.8
     tol: float = 1e-4
     acceptable_iter: int = 2

@@ -39,6 +39,20 @@ def climb_bend_descent(name: str, climb_m: float) -> dict[str, object]:
         {"type": "straight", "length_m": 250.0, "grade_pct": -3.0}]}
 
 
+def switchback_climb() -> dict[str, object]:
+    """Course-builder spec: six 15 m switchbacks up 7 % ramps of 80 m (1.16 km, a 5 m
+    road), as the Suunto watch's circuit of the horizon's switchback tests."""
+    segments: list[dict[str, object]] = [{"type": "straight", "length_m": 200.0,
+                                          "grade_pct": 2.0}]
+    for k in range(6):
+        segments += [{"type": "straight", "length_m": 80.0, "grade_pct": 7.0},
+                     {"type": "arc", "angle_deg": 180.0, "radius_m": 15.0,
+                      "direction": "left" if k % 2 else "right", "grade_pct": 5.0}]
+    segments.append({"type": "straight", "length_m": 200.0, "grade_pct": 2.0})
+    return {"name": "switchback-climb", "width_left_m": 2.5, "width_right_m": 2.5,
+            "segments": segments}
+
+
 #: The sweep tests' and bench's short course, 1.2 km.
 SHORT = climb_bend_descent("short-1200m", 900.0)
 
