@@ -62,7 +62,7 @@ class HorizonSettings:
             stalled the virtual rider. Two substeps everywhere cost 26 % of the median
             replan on verona-like and lost 3 of 50 replans of test_horizon's technical
             descent (bench/RESULTS.md, 2026-12-04). 1.0 since 2026-12-05: a slow rider
-            (3.5-5 m/s) up a switchback circuit's climbs had 18-30 m intervals at 1.1-2.0,
+            (3.5-5 m/s) up a switchback circuit's climbs had 18-38 m intervals at 1.1-2.0,
             and their solutions failed the check below (`Unresolved_Dynamics`): 47 of 73
             fallbacks; at 1.0, 8 fallbacks of 1,656 advice (10 % of St John's windows
             get two substeps instead of 3 %).
@@ -80,8 +80,8 @@ class HorizonSettings:
             `rescue_share` say; a deterministic replay has no wall-time cap). 150 since
             2026-12-05: at 60, replans that needed 61-150 iterations (a rider far off
             the plan through switchbacks: median 77, re-solved uncapped) failed all
-            three attempts; on a switchback circuit 166 of 1,656 advice were fallbacks,
-            9 at 150, and the Zwift Bologna ride 5 -> 1 (bench/RESULTS.md).
+            three attempts: on a switchback circuit 166 of 1,656 advice were fallbacks,
+            9 at 150 (bench/RESULTS.md, 2026-12-05).
         tol: IPOPT tolerance (a replan needs less accuracy than the plan). 1e-4 since
             the NLP is unscaled: with 1e-3 the closed loop on the technical test course
             finished 1.3 % behind the optimum (tests/sim/test_simulate.py), at the same
