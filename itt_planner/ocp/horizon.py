@@ -129,9 +129,8 @@ from itt_planner.model.params import ModelParams
 from itt_planner.model.rider import Rider
 from itt_planner.model.state import RiderState
 from itt_planner.ocp.horizon_nlp import HorizonNlp
+from itt_planner.ocp.horizon_rescue import usable
 from itt_planner.ocp.horizon_settings import (
-    BEYOND_LIMITS,
-    SUBOPTIMAL_FEASIBLE,
     UNRESOLVED,
     HorizonSettings,
     HorizonSolution,
@@ -276,7 +275,7 @@ class HorizonPlanner:
             iterations += res.iterations
             statuses.append(res.raw_status)
             outcome = res.status
-            success, verdict = _usable(nlp, res, p, lbw, ubw)
+            success, verdict = usable(nlp.feasible, res, p, lbw, ubw)
             statuses.extend(verdict)
             if success:
                 break
@@ -343,15 +342,3 @@ class HorizonPlanner:
         self._previous_mult = None
         self._failures = 0
 
-
-def _usable(nlp: HorizonNlp, res: SolveResult, p: np.ndarray, lbw: np.ndarray,
-            ubw: np.ndarray) -> tuple[bool, list[str]]:
-    """Whether an attempt's result is advice (module docstring), and the status it adds:
-    converged within the limits `HorizonNlp.feasible` checks; converged beyond them
-    (`BEYOND_LIMITS`, not usable); stopped by the budget and feasible
-    (`SUBOPTIMAL_FEASIBLE`)."""
-    if res.converged:
-        return (True, []) if nlp.feasible(res.w, p, lbw, ubw) else (False, [BEYOND_LIMITS])
-    if res.iterations >= 1 and res.status is PlanStatus.CAPPED and nlp.feasible(res.w, p, lbw, ubw):
-        return True, [SUBOPTIMAL_FEASIBLE]
-    return False, []

@@ -19,6 +19,7 @@ import numpy as np
 from itt_planner.model.dynamics import SpatialModel, build_3d_steady_lean, rk4_step
 from itt_planner.model.params import ROAD
 from itt_planner.ocp.horizon_settings import (
+    BEYOND_LIMITS,
     SMOOTHED_FEASIBLE,
     SUBOPTIMAL_FEASIBLE,
     HorizonSettings,
@@ -31,6 +32,19 @@ log = logging.getLogger(__name__)
 #: (iterate, parameters, lower and upper simple bounds) -> whether it is valid advice
 #: (`HorizonNlp.feasible`: dynamics, road, grip, W' >= 0).
 Feasible = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], bool]
+
+
+def usable(feasible: Feasible, res: SolveResult, p: np.ndarray, lbw: np.ndarray,
+           ubw: np.ndarray) -> tuple[bool, list[str]]:
+    """Whether a run's result is advice (`horizon` module docstring), and the status it
+    adds: converged within the limits `feasible` checks; converged beyond them
+    (`BEYOND_LIMITS`, not usable); stopped by the budget and feasible
+    (`SUBOPTIMAL_FEASIBLE`). Every attempt of a replan is judged so, the polish too."""
+    if res.converged:
+        return (True, []) if feasible(res.w, p, lbw, ubw) else (False, [BEYOND_LIMITS])
+    if res.iterations >= 1 and res.status is PlanStatus.CAPPED and feasible(res.w, p, lbw, ubw):
+        return True, [SUBOPTIMAL_FEASIBLE]
+    return False, []
 
 
 def rescue_enabled(settings: HorizonSettings) -> bool:
@@ -101,11 +115,9 @@ class HorizonRescue:
         _log_error("polish", polish)
         iterations += polish.iterations
         bare = dataclasses.replace(polish, lam_x=None, lam_g=None)
-        if polish.converged and self._feasible(polish.w, p, lbw, ubw):
-            return bare, polish.raw_status, iterations
-        if (polish.iterations >= 1 and polish.status is PlanStatus.CAPPED
-                and self._feasible(polish.w, p, lbw, ubw)):
-            return bare, SUBOPTIMAL_FEASIBLE, iterations
+        ok, verdict = usable(self._feasible, polish, p, lbw, ubw)
+        if ok:
+            return bare, (verdict or [polish.raw_status])[-1], iterations
         w = self.exact_w_prime(smooth.w, p)
         if self._feasible(w, p, lbw, ubw):
             return dataclasses.replace(bare, w=w), SMOOTHED_FEASIBLE, iterations
