@@ -290,7 +290,6 @@ class CpMonitor:
                 return None
         if stamp_s - pending.stamp_s < st.confirm_s:
             return None
-        self._pending = None
         return self._adopt(dataclasses.replace(pending, stamp_s=stamp_s, s_m=state.s_m))
 
     def _adopt(self, refit: Refit) -> Refit:
